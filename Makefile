@@ -1,0 +1,36 @@
+# Two commands for a fresh machine (see README):  make demo   and   make test
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+INSTALLED := $(VENV)/.installed
+
+.PHONY: demo test install lock clean
+
+# The virtual environment is rebuilt whenever the lock file or the package metadata changes.
+$(INSTALLED): requirements.lock pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet --no-deps -r requirements.lock
+	$(BIN)/pip install --quiet --no-deps --no-build-isolation -e .
+	touch $@
+
+install: $(INSTALLED)
+
+demo: $(INSTALLED)
+	$(BIN)/vintix tasks
+	$(BIN)/vintix check-envs --episodes 5
+
+test: $(INSTALLED)
+	$(BIN)/python -m pytest -q
+
+# Re-resolve dependencies from pyproject.toml into requirements.lock (needs the package index).
+lock:
+	rm -rf /tmp/vintix-lock && $(PYTHON) -m venv /tmp/vintix-lock
+	/tmp/vintix-lock/bin/pip install --quiet torch==2.13.0 -e '.[dev]'
+	/tmp/vintix-lock/bin/pip install --quiet --no-deps industrial-benchmark-python==2.0
+	{ sed -n '1,/^torch==/p' requirements.lock | sed '$$d'; \
+	  /tmp/vintix-lock/bin/pip freeze --exclude-editable | sed 's/^torch==\(.*\)+cpu/torch==\1/'; } > requirements.lock.new
+	mv requirements.lock.new requirements.lock
+
+clean:
+	rm -rf $(VENV) build src/*.egg-info

@@ -1,0 +1,97 @@
+"""The `vintix` command line: a thin layer over the package's stages."""
+
+from __future__ import annotations
+
+import csv
+import io
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import track
+from rich.table import Table
+
+from vintix.atomic import atomic_write_text
+from vintix.errors import VintixError
+from vintix.tasks import list_tasks, resolve_tasks
+
+app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True)
+# Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
+console = Console(width=None if sys.stdout.isatty() else 160)
+
+
+def _fail(error: Exception) -> typer.Exit:
+    console.print(f"[red]error:[/red] {error}")
+    return typer.Exit(code=2)
+
+
+def _score(mean: float, std: float | None) -> str:
+    return f"{mean:.1f}±{std:.1f}" if std is not None else f"{mean:.1f}"
+
+
+@app.command()
+def tasks(
+    domain: Annotated[Optional[str], typer.Option(help="mujoco, metaworld, industrial_benchmark or bidexhands")] = None,
+    split: Annotated[Optional[str], typer.Option(help="train or test")] = None,
+    group: Annotated[Optional[str], typer.Option(help="encoder/head group, e.g. metaworld")] = None,
+) -> None:
+    """List the task registry (reference scores are the paper's)."""
+    try:
+        selected = list_tasks(domain=domain, split=split, group=group)
+    except VintixError as error:
+        raise _fail(error)
+    table = Table(title=f"{len(selected)} tasks (random/expert: paper's published scores)")
+    for column in ("task", "domain", "group", "obs", "act", "episode", "reward×", "split", "random", "expert"):
+        table.add_column(column, justify="right" if column in ("obs", "act", "episode", "reward×") else "left")
+    for t in selected:
+        table.add_row(
+            t.name, t.domain, t.group, str(t.obs_dim), str(t.act_dim), str(t.episode_length), f"{t.reward_scale:g}",
+            t.split, _score(t.paper_random.mean, t.paper_random.std), _score(t.paper_expert.mean, t.paper_expert.std),
+        )
+    console.print(table)
+
+
+DEFAULT_CHECK_TASKS = ["Hopper-v5", "HalfCheetah-v5", "Reacher-v5", "pick-place-v3", "door-open-v3",
+                       "industrial-benchmark-35-v1", "industrial-benchmark-90-v1"]
+
+
+@app.command("check-envs")
+def check_envs(
+    task_names: Annotated[Optional[list[str]], typer.Argument(
+        metavar="[TASKS]...", help="task names, domains or splits (default: a few tasks of each runnable domain)")] = None,
+    episodes: Annotated[int, typer.Option(help="random-policy episodes per task")] = 10,
+    seed: int = 0,
+    out: Annotated[Optional[Path], typer.Option(help="also write the results to this CSV file")] = None,
+) -> None:
+    """Run a uniform-random policy on real envs; compare its return with the paper's and time the env."""
+    from vintix.tasks.check import random_policy_returns
+
+    try:
+        specs = [t for t in resolve_tasks(task_names or DEFAULT_CHECK_TASKS) if t.domain != "bidexhands"]
+    except VintixError as error:
+        raise _fail(error)
+    results = [random_policy_returns(t.name, episodes, seed) for t in track(specs, description="random rollouts")]
+    table = Table(title=f"uniform-random policy, {episodes} episodes, seed {seed}")
+    for column in ("task", "ours", "paper", "z", "env steps/s"):
+        table.add_column(column, justify="left" if column == "task" else "right")
+    for result, spec in zip(results, specs):
+        z = result.paper_z
+        table.add_row(spec.name, _score(result.mean, result.std), _score(spec.paper_random.mean, spec.paper_random.std),
+                      "—" if z is None else f"{z:+.2f}", f"{result.steps_per_second:,.0f}")
+    console.print(table)
+    if out is not None:
+        buffer = io.StringIO()
+        writer = csv.writer(buffer)
+        writer.writerow(["task", "episodes", "seed", "mean", "std", "paper_mean", "paper_std", "z", "steps_per_second"])
+        for result, spec in zip(results, specs):
+            writer.writerow([spec.name, episodes, seed, f"{result.mean:.3f}", f"{result.std:.3f}",
+                             spec.paper_random.mean, spec.paper_random.std,
+                             "" if result.paper_z is None else f"{result.paper_z:.3f}", f"{result.steps_per_second:.0f}"])
+        atomic_write_text(out, buffer.getvalue())
+        console.print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,128 @@
+"""`make_env`: one entry point that returns a standard gymnasium env for any task of the registry.
+
+Meta-World and Industrial Benchmark tasks are registered with gymnasium under the `vintix/`
+namespace, so `gymnasium.make("vintix/pick-place-v3")` works too once `vintix` is imported; MuJoCo
+tasks are gymnasium's own ids.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+
+from vintix.errors import MissingDependencyError, UnsupportedOptionError
+from vintix.tasks.registry import TaskSpec, get_task, list_tasks
+
+NAMESPACE = "vintix"
+
+
+def gymnasium_id(spec: TaskSpec) -> str:
+    """The id under which gymnasium knows the task."""
+    return spec.name if spec.domain == "mujoco" else f"{NAMESPACE}/{spec.name}"
+
+
+def register_gymnasium_envs() -> None:
+    """Register the Meta-World and Industrial Benchmark tasks with gymnasium (idempotent)."""
+    for spec in list_tasks(domain="metaworld"):
+        if gymnasium_id(spec) not in gym.registry:
+            gym.register(
+                gymnasium_id(spec),
+                entry_point="vintix.tasks.metaworld:MetaWorldTaskEnv",
+                kwargs={"task_name": spec.name},
+                max_episode_steps=spec.episode_length,
+            )
+    for spec in list_tasks(domain="industrial_benchmark"):
+        if gymnasium_id(spec) not in gym.registry:
+            gym.register(
+                gymnasium_id(spec),
+                entry_point="vintix.tasks.industrial_benchmark:IndustrialBenchmarkEnv",
+                kwargs={"setpoint": float(spec.name.split("-")[2])},
+                max_episode_steps=spec.episode_length,
+            )
+
+
+class SeedFirstReset(gym.Wrapper):
+    """Makes `make_env(task, seed=s)` reproducible: the first `reset()` without a seed uses `s`, and
+    the action space is seeded with `s` so `action_space.sample()` is reproducible too."""
+
+    def __init__(self, env: gym.Env, seed: int | None) -> None:
+        super().__init__(env)
+        self._first_seed = seed
+        if seed is not None:
+            env.action_space.seed(seed)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        if seed is None:
+            seed = self._first_seed
+        self._first_seed = None
+        return self.env.reset(seed=seed, options=options)
+
+
+def _make_mujoco(spec: TaskSpec, seed: int | None, viscosity: float | None = None,
+                 gravity_scale: float | None = None, render_mode: str | None = None) -> gym.Env:
+    from vintix.tasks.mujoco import make_mujoco_env
+
+    return make_mujoco_env(spec, viscosity=viscosity, gravity_scale=gravity_scale, render_mode=render_mode)
+
+
+def _make_metaworld(spec: TaskSpec, seed: int | None, episode_length: int | None = None,
+                    resample_goal_each_episode: bool = False, render_mode: str | None = None) -> gym.Env:
+    length = episode_length or spec.episode_length
+    return gym.make(gymnasium_id(spec), seed=seed, episode_length=length, max_episode_steps=length,
+                    resample_goal_each_episode=resample_goal_each_episode, render_mode=render_mode)
+
+
+def _make_industrial_benchmark(spec: TaskSpec, seed: int | None, reward_type: str = "classic") -> gym.Env:
+    return gym.make(gymnasium_id(spec), reward_type=reward_type)
+
+
+def _make_bidexhands(spec: TaskSpec, seed: int | None) -> gym.Env:
+    try:
+        import isaacgym  # noqa: F401
+    except ImportError as error:
+        raise MissingDependencyError(
+            f"Bi-DexHands task {spec.name!r} runs on NVIDIA IsaacGym (Preview 4: Linux, an NVIDIA GPU), which "
+            "no package registry serves: download it from NVIDIA's developer site, `pip install -e "
+            "isaacgym/python`, then install Bi-DexHands (PKU-MARL/DexterousHands). Without it, this task's "
+            "data can still be read, validated and trained on."
+        ) from error
+    raise NotImplementedError(
+        f"IsaacGym is installed, but vintix has no Bi-DexHands env wrapper yet for {spec.name!r}: "
+        "no machine of this project has IsaacGym to build and test one against."
+    )
+
+
+_FACTORIES: dict[str, Callable[..., gym.Env]] = {
+    "mujoco": _make_mujoco,
+    "metaworld": _make_metaworld,
+    "industrial_benchmark": _make_industrial_benchmark,
+    "bidexhands": _make_bidexhands,
+}
+
+
+def domain_options(domain: str) -> list[str]:
+    """The keyword options `make_env` accepts for tasks of `domain`."""
+    return list(inspect.signature(_FACTORIES[domain]).parameters)[2:]
+
+
+def make_env(task: str, seed: int | None = None, **options: Any) -> gym.Env:
+    """A gymnasium env for `task` (a name or alias from the registry).
+
+    Options by domain: MuJoCo `viscosity`, `gravity_scale`, `render_mode`; Meta-World
+    `episode_length`, `resample_goal_each_episode`, `render_mode`; Industrial Benchmark `reward_type`.
+    An option the task's domain does not have is an error, never silently ignored.
+    """
+    spec = get_task(task)
+    accepted = domain_options(spec.domain)
+    unknown = sorted(set(options) - set(accepted))
+    if unknown:
+        where = [d for d in _FACTORIES if set(unknown) <= set(domain_options(d))]
+        hint = f" It exists for {', '.join(where)} tasks." if where else ""
+        raise UnsupportedOptionError(
+            f"option(s) {', '.join(unknown)} do not apply to {spec.domain} task {spec.name!r}; "
+            f"it accepts: {', '.join(accepted) or 'no options'}.{hint}"
+        )
+    return SeedFirstReset(_FACTORIES[spec.domain](spec, seed, **options), seed)

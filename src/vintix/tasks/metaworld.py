@@ -1,0 +1,97 @@
+"""Meta-World tasks in the ML45 setting: goal hidden, one goal per env, short episodes.
+
+Protocol (DESIGN §2): an env keeps one hidden goal (object and target positions, metaworld's
+"rand_vec") for its whole life, drawn reproducibly from its seed, so an agent can infer the goal from
+rewards across episodes, as in meta-RL. `resample_goal_each_episode=True` draws a new goal at every
+reset instead, like the official Vintix release's wrapper.
+
+The goal is zeroed in the observation (metaworld's `partially_observable`). Scripted demonstrators
+need it: `expert_observation(obs)` puts it back. Only demonstrators may call it, never a model.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+
+DEFAULT_EPISODE_LENGTH = 100  # the paper truncates episodes at 100 steps, like JAT
+
+
+class MetaWorldTaskEnv(gym.Env):
+    """One Meta-World task with a hidden goal, as a standard gymnasium env."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 80}
+
+    def __init__(
+        self,
+        task_name: str,
+        seed: int | None = None,
+        episode_length: int = DEFAULT_EPISODE_LENGTH,
+        resample_goal_each_episode: bool = False,
+        render_mode: str | None = None,
+    ) -> None:
+        self.task_name = task_name
+        self.resample_goal_each_episode = resample_goal_each_episode
+        self.render_mode = render_mode
+        self._sawyer = ALL_V3_ENVIRONMENTS[task_name](render_mode=render_mode)
+        self._sawyer._partially_observable = True
+        self._sawyer.__dict__.pop("sawyer_observation_space", None)  # cached before we hid the goal
+        self._sawyer._set_task_called = True
+        # The sawyer env raises past max_path_length and flags truncation at it: make it our length.
+        self._sawyer.max_path_length = episode_length
+        self.observation_space = self._sawyer.observation_space
+        self.action_space = self._sawyer.action_space
+        self._seed_and_draw_goal(seed)
+
+    def _seed_and_draw_goal(self, seed: int | None) -> None:
+        if seed is None:
+            seed = int(np.random.SeedSequence().generate_state(1)[0])
+        self._sawyer.seed(seed)
+        self._draw_goal()
+
+    def _draw_goal(self) -> None:
+        """Draw a goal from the sawyer env's own seeded RNG, then freeze it.
+
+        Metaworld's resets redraw until object and goal are far enough apart, so the draw goes
+        through a real reset (the way metaworld builds its own benchmark tasks) rather than a
+        hand-rolled sample that could violate those constraints.
+        """
+        self._sawyer._freeze_rand_vec = False
+        self._sawyer.seeded_rand_vec = True  # use the env's np_random, not NumPy's global RNG
+        self._sawyer.reset()
+        self._sawyer._freeze_rand_vec = True
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        """`seed` re-seeds the env and draws the goal anew, exactly as a new env with that seed would."""
+        super().reset(seed=seed)
+        if seed is not None:
+            self._seed_and_draw_goal(seed)
+        elif self.resample_goal_each_episode:
+            self._draw_goal()
+        obs, info = self._sawyer.reset()
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        obs, reward, terminated, truncated, info = self._sawyer.step(action)
+        return obs, float(reward), terminated, truncated, info
+
+    @property
+    def true_goal(self) -> np.ndarray:
+        """The hidden target position. For scripted demonstrators only."""
+        return np.array(self._sawyer._target_pos, dtype=np.float64)
+
+    def expert_observation(self, obs: np.ndarray) -> np.ndarray:
+        """`obs` with the hidden goal written back into its last 3 entries, as metaworld's scripted
+        policies expect. For scripted demonstrators only: a model must never see this."""
+        full = np.array(obs, dtype=np.float64, copy=True)
+        full[..., -3:] = self.true_goal
+        return full
+
+    def render(self) -> np.ndarray | None:
+        return self._sawyer.render()
+
+    def close(self) -> None:
+        self._sawyer.close()

@@ -1,0 +1,35 @@
+"""MuJoCo tasks through gymnasium, with the paper's parametric variations (§4.3).
+
+Variations are written into the compiled MuJoCo model (`model.opt`), which `reset` never touches, so
+they hold for the env's whole life; the agent is never told about them.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from vintix.tasks.registry import TaskSpec
+
+
+def make_mujoco_env(
+    spec: TaskSpec,
+    viscosity: float | None = None,
+    gravity_scale: float | None = None,
+    render_mode: str | None = None,
+) -> gym.Env:
+    """gymnasium's env for `spec`, optionally with another viscosity (paper: 0.05, 0.1) or gravity
+    scaled by `gravity_scale` (paper: 0.9, 1.1)."""
+    env = gym.make(spec.name, render_mode=render_mode)
+    apply_physics_variation(env, viscosity=viscosity, gravity_scale=gravity_scale)
+    return env
+
+
+def apply_physics_variation(env: gym.Env, viscosity: float | None = None, gravity_scale: float | None = None) -> None:
+    """Change the medium's viscosity and/or scale gravity of a gymnasium MuJoCo env in place."""
+    model = env.unwrapped.model  # type: ignore[attr-defined]
+    if viscosity is not None:
+        if viscosity < 0:
+            raise ValueError(f"viscosity must be >= 0, got {viscosity}")
+        model.opt.viscosity = viscosity
+    if gravity_scale is not None:
+        model.opt.gravity[:] = model.opt.gravity * gravity_scale

@@ -1,0 +1,155 @@
+"""The registry of every task of the Vintix paper (102 tasks in 4 domains).
+
+The table ships inside the package (`paper_tasks.csv`, built by `scripts/build_task_table.py` from
+the paper's appendix tables) so nothing outside the package is read at run time.
+
+Naming: MuJoCo tasks use gymnasium's `-v5` ids. The paper's tables say `-v4`, but the dimensions
+it published are the v5 ones (Ant 105, Humanoid 348, ...), so `-v4` names are accepted as aliases
+of the `-v5` task. Meta-World tasks use metaworld 3.x's `-v3` ids; the paper's bare names and
+`-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1` (alias `IB-p-<p>`);
+Bi-DexHands uses the dataset's `Hand-*` names (alias: the score table's `shadowhand*`).
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+from typing import Literal
+
+from vintix.errors import UnknownTaskError
+
+Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands"]
+Split = Literal["train", "test"]
+DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands")
+
+PAPER_PROVENANCE = (
+    "paper: Vintix (ICML 2025) appendix 'Task-Level Performance'; MuJoCo -v4 names with v5 dims, "
+    "Meta-World v2 with 100-step episodes, Industrial Benchmark classic reward / 100 over 250 steps"
+)
+
+# Names users may reasonably try that cannot work here, with the reason and the fix.
+_UNAVAILABLE = {
+    "Pusher-v4": "gymnasium's Pusher-v4 only loads on mujoco<3, and metaworld 3.1.1 pins mujoco "
+    "3.3.0; the paper itself used Pusher-v5. Use 'Pusher-v5'.",
+}
+
+
+@dataclass(frozen=True)
+class ReferenceScore:
+    """An episode-return statistic with where it came from."""
+
+    mean: float
+    std: float | None
+    provenance: str
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """Everything the pipeline needs to know about one task."""
+
+    name: str
+    domain: Domain
+    group: str
+    """Tasks of a group share observation/action encoders and the action head."""
+    obs_dim: int
+    act_dim: int
+    episode_length: int
+    """Maximum steps per episode (Bi-DexHands: the paper's mean length, tasks end themselves)."""
+    reward_scale: float
+    """Multiplies rewards before they enter the model."""
+    split: Split
+    aliases: tuple[str, ...]
+    paper_random: ReferenceScore
+    paper_expert: ReferenceScore
+    paper_vintix_normalized: ReferenceScore
+    paper_history_length: int
+    """Steps per learning history in the paper's dataset."""
+    paper_histories: int
+    """Learning histories per task in the paper's dataset."""
+
+
+def _optional_float(text: str) -> float | None:
+    return float(text) if text else None
+
+
+def _spec_from_row(row: dict[str, str]) -> TaskSpec:
+    def score(prefix: str) -> ReferenceScore:
+        return ReferenceScore(float(row[f"{prefix}_mean"]), _optional_float(row[f"{prefix}_std"]), PAPER_PROVENANCE)
+
+    return TaskSpec(
+        name=row["name"],
+        domain=row["domain"],  # type: ignore[arg-type]
+        group=row["group"],
+        obs_dim=int(row["obs_dim"]),
+        act_dim=int(row["act_dim"]),
+        episode_length=int(row["episode_length"]),
+        reward_scale=float(row["reward_scale"]),
+        split=row["split"],  # type: ignore[arg-type]
+        aliases=tuple(row["aliases"].split()),
+        paper_random=score("random"),
+        paper_expert=score("expert"),
+        paper_vintix_normalized=score("paper_vintix"),
+        paper_history_length=int(row["paper_history_length"]),
+        paper_histories=int(row["paper_histories"]),
+    )
+
+
+@cache
+def _tasks() -> dict[str, TaskSpec]:
+    table = resources.files("vintix.tasks").joinpath("paper_tasks.csv").read_text()
+    return {spec.name: spec for spec in map(_spec_from_row, csv.DictReader(table.splitlines()))}
+
+
+@cache
+def _names_and_aliases() -> dict[str, str]:
+    lookup = {}
+    for spec in _tasks().values():
+        lookup[spec.name] = spec.name
+        lookup.update({alias: spec.name for alias in spec.aliases})
+    return lookup
+
+
+def get_task(name: str) -> TaskSpec:
+    """The task called `name` (or one of its aliases); raises UnknownTaskError with close matches."""
+    lookup = _names_and_aliases()
+    if name in lookup:
+        return _tasks()[lookup[name]]
+    if name in _UNAVAILABLE:
+        raise UnknownTaskError(f"task {name!r} is not available: {_UNAVAILABLE[name]}")
+    close = difflib.get_close_matches(name, list(lookup), n=5, cutoff=0.6)
+    hint = f" Did you mean: {', '.join(close)}?" if close else ""
+    raise UnknownTaskError(f"unknown task {name!r}.{hint} Run `vintix tasks` to list all {len(_tasks())} tasks.")
+
+
+def list_tasks(domain: str | None = None, split: str | None = None, group: str | None = None) -> list[TaskSpec]:
+    """Tasks in registry order, optionally filtered; an unknown filter value is an error, not an empty list."""
+    every_task = list(_tasks().values())
+    tasks = every_task
+    for field, value in (("domain", domain), ("split", split), ("group", group)):
+        if value is None:
+            continue
+        known = sorted({getattr(t, field) for t in every_task})
+        if value not in known:
+            raise UnknownTaskError(f"unknown {field} {value!r}; known: {', '.join(known)}")
+        tasks = [t for t in tasks if getattr(t, field) == value]
+    return tasks
+
+
+def resolve_tasks(selectors: list[str]) -> list[TaskSpec]:
+    """Expand task names, domain names and split names ('train'/'test') into tasks, without repeats.
+
+    `["mujoco", "door-open-v3", "test"]` is every MuJoCo task, door-open, and every test task.
+    """
+    selected: dict[str, TaskSpec] = {}
+    for selector in selectors:
+        if selector in DOMAINS:
+            found = list_tasks(domain=selector)
+        elif selector in ("train", "test"):
+            found = list_tasks(split=selector)
+        else:
+            found = [get_task(selector)]
+        selected.update((t.name, t) for t in found)
+    return list(selected.values())

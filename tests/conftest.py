@@ -1,0 +1,20 @@
+"""Shared helpers for tests that drive real environments."""
+
+import numpy as np
+
+
+def rollout(env, steps: int, action_seed: int = 0, reset_seed: int | None = None):
+    """Reset (with `reset_seed`), then take `steps` uniform-random actions drawn from a generator of
+    our own (not the env's action space), resetting at episode ends.
+    Returns (observations, rewards) stacked, the reset observations included."""
+    rng = np.random.default_rng(action_seed)
+    low, high = env.action_space.low, env.action_space.high
+    obs, _ = env.reset(seed=reset_seed)
+    observations, rewards = [obs], []
+    for _ in range(steps):
+        obs, reward, terminated, truncated, _ = env.step(rng.uniform(low, high).astype(env.action_space.dtype))
+        observations.append(obs)
+        rewards.append(reward)
+        if terminated or truncated:
+            observations.append(env.reset()[0])
+    return np.array(observations), np.array(rewards)

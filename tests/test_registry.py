@@ -1,0 +1,75 @@
+"""The task registry: all 102 tasks of the paper, their dims, groups, splits and names."""
+
+import pytest
+
+from vintix.errors import UnknownTaskError
+from vintix.tasks import get_task, list_tasks, resolve_tasks
+
+
+def test_registry_has_every_task_of_the_paper():
+    counts = {d: len(list_tasks(domain=d)) for d in ("mujoco", "metaworld", "industrial_benchmark", "bidexhands")}
+    assert counts == {"mujoco": 11, "metaworld": 50, "industrial_benchmark": 21, "bidexhands": 20}
+    assert len(list_tasks()) == 102
+
+
+def test_splits_follow_the_paper():
+    metaworld_test = {t.name for t in list_tasks(domain="metaworld", split="test")}
+    assert metaworld_test == {"bin-picking-v3", "box-close-v3", "door-lock-v3", "door-unlock-v3", "hand-insert-v3"}
+    ib_test = [int(t.name.split("-")[2]) for t in list_tasks(domain="industrial_benchmark", split="test")]
+    assert ib_test == [80, 85, 90, 95, 100]
+    assert len(list_tasks(domain="bidexhands", split="train")) == 15
+    assert not list_tasks(domain="mujoco", split="test")  # MuJoCo's held-out set is physics variations
+
+
+def test_dims_are_gymnasium_v5_dims():
+    assert (get_task("Ant-v5").obs_dim, get_task("Ant-v5").act_dim) == (105, 8)
+    assert get_task("Humanoid-v5").obs_dim == 348
+    assert get_task("InvertedDoublePendulum-v5").obs_dim == 9
+    assert get_task("Reacher-v5").obs_dim == 10
+    assert (get_task("pick-place-v3").obs_dim, get_task("pick-place-v3").act_dim) == (39, 4)
+    assert (get_task("industrial-benchmark-0-v1").obs_dim, get_task("industrial-benchmark-0-v1").act_dim) == (6, 3)
+
+
+def test_groups_share_dims_and_mujoco_has_one_group_per_env():
+    by_group = {}
+    for task in list_tasks():
+        by_group.setdefault(task.group, set()).add((task.obs_dim, task.act_dim))
+    assert all(len(dims) == 1 for dims in by_group.values())
+    assert len({t.group for t in list_tasks(domain="mujoco")}) == 11
+    assert {t.group for t in list_tasks(domain="metaworld")} == {"metaworld"}
+
+
+@pytest.mark.parametrize(
+    "alias, name",
+    [("Hopper-v4", "Hopper-v5"), ("pick-place-v2", "pick-place-v3"), ("assembly", "assembly-v3"),
+     ("IB-p-35", "industrial-benchmark-35-v1"), ("shadowhandpen", "Hand-Pen")],
+)
+def test_paper_names_are_aliases(alias, name):
+    assert get_task(alias).name == name
+
+
+def test_reference_scores_carry_provenance():
+    hopper = get_task("Hopper-v5")
+    assert (hopper.paper_random.mean, hopper.paper_expert.mean) == (16.2, 3237.8)
+    assert hopper.paper_expert.provenance.startswith("paper")
+
+
+def test_unknown_task_lists_close_matches():
+    with pytest.raises(UnknownTaskError, match="Did you mean: .*pick-place-v3"):
+        get_task("pick-plcae-v3")
+
+
+def test_pusher_v4_explains_why_it_is_unavailable():
+    with pytest.raises(UnknownTaskError, match="mujoco<3.*Pusher-v5"):
+        get_task("Pusher-v4")
+
+
+def test_unknown_filter_value_is_an_error_not_an_empty_list():
+    with pytest.raises(UnknownTaskError, match="unknown domain 'mujuco'"):
+        list_tasks(domain="mujuco")
+
+
+def test_resolve_tasks_expands_domains_and_splits_without_repeats():
+    names = [t.name for t in resolve_tasks(["industrial_benchmark", "test", "Hopper-v4", "Hopper-v5"])]
+    assert len(names) == len(set(names))
+    assert "industrial-benchmark-0-v1" in names and "door-lock-v3" in names and "Hopper-v5" in names
