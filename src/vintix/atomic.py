@@ -7,17 +7,37 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+PARTIAL_SUFFIX = ".partial"
+
+
+def partial_path(path: str | os.PathLike[str]) -> Path:
+    """The temporary sibling that holds a file until it is complete (same directory, so the final
+    rename is atomic on POSIX filesystems)."""
+    path = Path(path)
+    return path.with_name(path.name + PARTIAL_SUFFIX)
+
+
+def publish(temporary: Path, final: str | os.PathLike[str]) -> None:
+    """Give a finished temporary file its final name."""
+    # Without fsync, a crash shortly after the rename can leave the new name pointing at empty blocks.
+    fd = os.open(temporary, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    os.replace(temporary, final)
+
 
 @contextmanager
-def atomic_path(path: str | os.PathLike[str], suffix: str = ".partial") -> Iterator[Path]:
-    """Yield a temporary path beside `path`; rename it to `path` when the block succeeds, delete it
-    when the block raises. Same directory, so the rename is atomic on POSIX filesystems."""
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path beside `path`; publish it as `path` when the block succeeds, delete it
+    when the block raises."""
     final = Path(path)
     final.parent.mkdir(parents=True, exist_ok=True)
-    temporary = final.with_name(final.name + suffix)
+    temporary = partial_path(final)
     try:
         yield temporary
-        os.replace(temporary, final)
+        publish(temporary, final)
     finally:
         temporary.unlink(missing_ok=True)
 

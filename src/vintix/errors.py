@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 
 class VintixError(Exception):
     """Base class of every error vintix raises on purpose."""
@@ -17,3 +20,16 @@ class UnsupportedOptionError(VintixError, ValueError):
 
 class MissingDependencyError(VintixError, ImportError):
     """An optional package a domain needs is not installed (the message says what to install)."""
+
+
+class DatasetError(VintixError, ValueError):
+    """A dataset file or folder that breaks the format; ``str()`` reads "<path>: <problem and fix>"."""
+
+    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
+        # Both parts are kept in args so the error survives pickling (DataLoader workers re-raise it).
+        super().__init__(Path(path), problem)
+        self.path = Path(path)
+        self.problem = problem
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.problem}"

@@ -1,0 +1,39 @@
+"""Learning-history datasets in the official Vintix format: writer, lazy reader, discovery, validation."""
+
+from vintix.data.hdf5 import (
+    DTYPES,
+    MAX_GROUP_ROWS,
+    DatasetError,
+    LearningHistory,
+    LearningHistoryWriter,
+    TaskData,
+    find_tasks,
+    history_paths,
+    metadata_dims,
+    read_task_metadata,
+    task_directory,
+    task_dirs,
+    write_task_metadata,
+)
+from vintix.data.validate import Problem, TaskSummary, summarize_dataset, validate_dataset, validate_task
+
+__all__ = [
+    "DTYPES",
+    "MAX_GROUP_ROWS",
+    "DatasetError",
+    "LearningHistory",
+    "LearningHistoryWriter",
+    "Problem",
+    "TaskData",
+    "TaskSummary",
+    "find_tasks",
+    "history_paths",
+    "metadata_dims",
+    "read_task_metadata",
+    "summarize_dataset",
+    "task_directory",
+    "task_dirs",
+    "validate_dataset",
+    "validate_task",
+    "write_task_metadata",
+]

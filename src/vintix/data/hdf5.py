@@ -1,0 +1,579 @@
+"""Learning histories in the official Vintix on-disk format (HDF5 + one JSON per task).
+
+Layout (compatible with the released Vintix dataset)::
+
+    <root>/<domain>/<task_dir>/<task_dir>.json   # task_name, observation_shape.proprio=[d], action_dim, action_type
+    <root>/<domain>/<task_dir>/*.h5              # one file per learning history
+
+A history file holds groups of at most 10,000 consecutive steps named ``"<start>-<end>"`` (end
+inclusive), each with ``proprio_observation`` float32 (n, obs_dim), ``action`` float32 (n, act_dim),
+``reward`` float32 (n,) and ``step_num`` int32 (n,). Row i is (o_i, a_i taken at o_i, r_i after a_i);
+``step_num == 0`` marks an episode start and a file starts with one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from bisect import bisect_right
+from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from itertools import takewhile
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from vintix.atomic import atomic_write_text, partial_path, publish
+from vintix.errors import DatasetError
+
+MAX_GROUP_ROWS = 10_000
+"""Most rows a step group may hold in the official format."""
+
+DTYPES: dict[str, np.dtype] = {
+    "proprio_observation": np.dtype(np.float32),
+    "action": np.dtype(np.float32),
+    "reward": np.dtype(np.float32),
+    "step_num": np.dtype(np.int32),
+}
+"""Dataset name in a group -> official dtype."""
+
+FIELDS: dict[str, str] = {
+    "observation": "proprio_observation",
+    "action": "action",
+    "reward": "reward",
+    "step_num": "step_num",
+}
+"""Key returned by `LearningHistory.read` -> dataset name on disk."""
+
+PathLike = str | os.PathLike[str]
+
+_GROUP_NAME = re.compile(r"(\d+)-(\d+)")
+# h5py surfaces HDF5 failures (truncated or overwritten bytes) as OSError or RuntimeError.
+_HDF5_FAILURES = (OSError, RuntimeError)
+
+
+# --------------------------------------------------------------------------------------------
+# Shared low-level helpers
+
+
+@contextmanager
+def translate_hdf5_errors(path: Path) -> Iterator[None]:
+    """Turn HDF5 library failures, raised deep inside h5py, into a DatasetError that names the file."""
+    try:
+        yield
+    except _HDF5_FAILURES as err:
+        raise DatasetError(
+            path, f"not a readable HDF5 file (truncated or corrupted?): {err}; re-collect or delete it"
+        ) from err
+
+
+def open_hdf5(path: PathLike) -> h5py.File:
+    """Open a history read-only, with errors a user can act on instead of an h5py traceback."""
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(path, "no such file; check the path (histories end in .h5)")
+    with translate_hdf5_errors(path):
+        return h5py.File(path, "r")
+
+
+def step_num_breaks(step_num: np.ndarray, previous: int) -> np.ndarray:
+    """Indices where ``step_num`` is neither 0 (an episode start) nor the previous value + 1.
+
+    ``previous`` is the step number of the row just before ``step_num[0]``; pass -1 for the first
+    row of a file, which therefore has to be 0.
+    """
+    steps = np.asarray(step_num, dtype=np.int64)
+    before = np.concatenate(([previous], steps[:-1]))
+    return np.flatnonzero((steps != 0) & (steps != before + 1))
+
+
+class ProblemLog:
+    """Collects problems by kind, so a file with 10,000 NaN rows yields one line, not 10,000."""
+
+    def __init__(self) -> None:
+        self._first: dict[str, tuple[str, str]] = {}
+        self._count: Counter[str] = Counter()
+
+    def add(self, kind: str, what: str, fix: str, count: int = 1) -> None:
+        """Record ``count`` occurrences of ``kind``; only the first ``what`` is kept as the example."""
+        self._first.setdefault(kind, (what, fix))
+        self._count[kind] += count
+
+    def messages(self) -> list[str]:
+        """One message per kind: the first occurrence, how many there were, and the fix."""
+        return [
+            f"{what}{f' ({self._count[kind]} occurrences in this file)' if self._count[kind] > 1 else ''}; {fix}"
+            for kind, (what, fix) in self._first.items()
+        ]
+
+
+# --------------------------------------------------------------------------------------------
+# Group layout: the part of a file the reader needs to address rows
+
+
+@dataclass(frozen=True)
+class GroupSpan:
+    """One step group of a history file: rows [start, stop) of the history."""
+
+    name: str
+    start: int
+    stop: int
+
+
+@dataclass
+class Layout:
+    """Groups sorted by start step, the dims they agree on, and what is wrong with them."""
+
+    groups: list[GroupSpan]
+    obs_dim: int | None
+    act_dim: int | None
+    problems: list[str]
+
+
+def parse_group_name(name: str) -> tuple[int, int] | None:
+    """``"10000-19999"`` -> (10000, 19999); None if the name is not ``"<start>-<end>"`` with end >= start."""
+    match = _GROUP_NAME.fullmatch(name)
+    if match is None:
+        return None
+    start, end = int(match[1]), int(match[2])
+    return (start, end) if end >= start else None
+
+
+_REBUILD = "re-collect or delete the file"
+
+
+def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, int, int] | None:
+    """(rows, obs_dim, act_dim) of a step group, or None (with the problem logged) if it is unusable."""
+    datasets = {key: group.get(key) for key in DTYPES}
+    missing = [key for key, ds in datasets.items() if not isinstance(ds, h5py.Dataset)]
+    if missing:
+        log.add("missing", f"group {name!r} lacks dataset(s) {missing}", _REBUILD)
+        return None
+    obs, act, rew, step = (datasets[key].shape for key in DTYPES)
+    ranks_ok = len(obs) == len(act) == 2 and len(rew) == len(step) == 1
+    if not (ranks_ok and obs[0] == act[0] == rew[0] == step[0]):
+        log.add(
+            "shape",
+            f"group {name!r} has dataset shapes obs {obs}, action {act}, reward {rew}, step_num {step}; "
+            "expected (n, obs_dim), (n, act_dim), (n,), (n,)",
+            _REBUILD,
+        )
+        return None
+    return step[0], obs[1], act[1]
+
+
+def inspect_layout(file: h5py.File) -> Layout:
+    """Index the step groups of an open history from metadata only (no row data is read).
+
+    Checks what row addressing depends on: group names, datasets present with matching row
+    counts and consistent dims, names agreeing with row counts, and groups contiguous from 0.
+    Groups are ordered by their parsed start step: HDF5 lists names lexicographically, which
+    puts "100-109" before "20-29".
+    """
+    log = ProblemLog()
+    groups: list[GroupSpan] = []
+    claimed: list[GroupSpan] = []  # usable groups plus broken ones by name, so a broken group is not also a gap
+    dims: set[tuple[int, int]] = set()
+    for name, item in file.items():
+        span = parse_group_name(name)
+        if span is None or not isinstance(item, h5py.Group):
+            log.add("name", f"entry {name!r} is not a step group named '<start>-<end>'", f"remove it or {_REBUILD}")
+            continue
+        shape = _group_shape(name, item, log)
+        if shape is None:
+            claimed.append(GroupSpan(name, span[0], span[1] + 1))
+            continue
+        rows, obs_dim, act_dim = shape
+        if span[1] - span[0] + 1 != rows:
+            log.add("rows", f"group {name!r} is named for {span[1] - span[0] + 1} steps but holds {rows}", _REBUILD)
+        dims.add((obs_dim, act_dim))
+        groups.append(GroupSpan(name, span[0], span[0] + rows))
+        claimed.append(groups[-1])
+    if len(dims) > 1:
+        log.add("dims", f"groups disagree on (obs_dim, act_dim): {sorted(dims)}", f"it mixes tasks; {_REBUILD}")
+    expected_start = 0
+    for group in sorted(claimed, key=lambda g: g.start):
+        if group.start != expected_start:
+            kind = "gap" if group.start > expected_start else "overlap"
+            where = f"{kind} before group {group.name!r}: expected a group starting at step {expected_start}"
+            log.add("contiguity", where, _REBUILD)
+        expected_start = group.stop
+    if not claimed and not log.messages():
+        log.add("empty", "contains no step groups", "delete it")
+    groups.sort(key=lambda g: g.start)
+    obs_dim, act_dim = next(iter(dims)) if len(dims) == 1 else (None, None)
+    return Layout(groups, obs_dim, act_dim, log.messages())
+
+
+# --------------------------------------------------------------------------------------------
+# Writer
+
+
+class LearningHistoryWriter:
+    """Writes one learning history in the official format, atomically.
+
+    Rows go to ``<name>.h5.partial`` and the file is renamed to ``<name>.h5`` only by a successful
+    ``close()``, so an interrupted run never leaves a file that looks whole. If the ``with`` block
+    raises, the partial file is deleted rather than kept: the writer cannot resume it (buffered rows
+    are lost with the process), so it would only waste disk; a .partial left by a hard kill is
+    ignored by `find_tasks` and reported by validation. An existing ``<name>.h5`` is replaced on
+    close, like any atomic save.
+
+    Example::
+
+        with LearningHistoryWriter(path, obs_dim=17, act_dim=6) as writer:
+            writer.append(obs, action, reward, step_num)       # one step, or a batch of rows
+    """
+
+    def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS) -> None:
+        self.path = Path(path)
+        if self.path.suffix != ".h5":
+            raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
+        if not (_is_dim(obs_dim) and _is_dim(act_dim)):
+            raise ValueError(f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
+        if not 1 <= chunk_size <= MAX_GROUP_ROWS:
+            raise ValueError(f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got {chunk_size}")
+        self.obs_dim, self.act_dim, self.chunk_size = obs_dim, act_dim, chunk_size
+        self._partial = partial_path(self.path)
+        # Rows wait in fixed buffers of one group, so single-step appends cost a copy, not an HDF5 write.
+        trailing = {"proprio_observation": (obs_dim,), "action": (act_dim,), "reward": (), "step_num": ()}
+        self._buffer = {key: np.empty((chunk_size, *trailing[key]), dtype) for key, dtype in DTYPES.items()}
+        self._filled = 0
+        self._flushed = 0
+        self._last_step = -1
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file: h5py.File | None = h5py.File(self._partial, "w")
+
+    @property
+    def num_steps(self) -> int:
+        """Rows appended so far (written or buffered)."""
+        return self._flushed + self._filled
+
+    def append(self, obs: Any, action: Any, reward: Any, step_num: Any) -> None:
+        """Append one step (1-D obs/action, scalar reward/step_num) or a batch (2-D obs/action, 1-D rest).
+
+        Everything is checked before anything is buffered, so a rejected call leaves the writer
+        unchanged: shapes against obs_dim/act_dim, numeric dtypes (integer step_num), finite values,
+        and step_num counting 0, 1, 2, ... within episodes starting from 0 at the file's first row.
+        """
+        if self._file is None:
+            raise ValueError(f"{self.path}: append() after close() or abort()")
+        rows = self._checked_rows(obs, action, reward, step_num)
+        n, offset = len(rows["step_num"]), 0
+        while offset < n:
+            take = min(n - offset, self.chunk_size - self._filled)
+            for key, values in rows.items():
+                self._buffer[key][self._filled : self._filled + take] = values[offset : offset + take]
+            self._filled += take
+            offset += take
+            if self._filled == self.chunk_size:
+                self._flush()
+        if n:
+            self._last_step = int(rows["step_num"][-1])
+
+    def _checked_rows(self, obs: Any, action: Any, reward: Any, step_num: Any) -> dict[str, np.ndarray]:
+        given = {"observation": np.asarray(obs), "action": np.asarray(action),
+                 "reward": np.asarray(reward), "step_num": np.asarray(step_num)}
+        single = given["observation"].ndim == 1
+        lead = () if single else given["observation"].shape[:1]
+        expected = {"observation": (*lead, self.obs_dim), "action": (*lead, self.act_dim),
+                    "reward": lead, "step_num": lead}
+        for name, values in given.items():
+            if values.shape != expected[name]:
+                raise DatasetError(
+                    self.path,
+                    f"append() got {name} of shape {values.shape}, expected {expected[name]} "
+                    f"(obs_dim={self.obs_dim}, act_dim={self.act_dim}; one step: 1-D observation, batch: 2-D)",
+                )
+            wanted = ("iu", "an integer") if name == "step_num" else ("iuf", "a real")
+            if values.dtype.kind not in wanted[0]:
+                raise DatasetError(self.path, f"append() got {name} of dtype {values.dtype}, expected {wanted[1]} one")
+            if name != "step_num" and not np.isfinite(values).all():
+                raise DatasetError(
+                    self.path, f"append() got NaN/inf in {name}; the environment or policy diverged, fix it first"
+                )
+        rows = {disk: (given[key][None] if single else given[key]).astype(DTYPES[disk])
+                for key, disk in FIELDS.items()}
+        breaks = step_num_breaks(rows["step_num"], self._last_step)
+        if len(breaks):
+            i = breaks[0]
+            before = self._last_step if i == 0 else rows["step_num"][i - 1]
+            raise DatasetError(
+                self.path,
+                f"append() got step_num {rows['step_num'][i]} after {before} (row {self.num_steps + i}); "
+                "step_num must count 0, 1, 2, ... within an episode and the file must start at 0",
+            )
+        return rows
+
+    def _flush(self) -> None:
+        assert self._file is not None
+        start, n = self._flushed, self._filled
+        group = self._file.create_group(f"{start}-{start + n - 1}")
+        for key, buffer in self._buffer.items():
+            group.create_dataset(key, data=buffer[:n])
+        self._flushed += n
+        self._filled = 0
+
+    def close(self) -> Path:
+        """Write the last (possibly short) group and atomically publish the file; returns its path."""
+        if self._file is None:
+            return self.path
+        try:
+            if self._filled:
+                self._flush()
+            if self._flushed == 0:
+                raise DatasetError(self.path, "no steps were appended, so no file was written; append before close()")
+            self._file.close()
+            publish(self._partial, self.path)
+        except BaseException:
+            self.abort()
+            raise
+        self._file = None
+        return self.path
+
+    def abort(self) -> None:
+        """Discard everything written so far (the final file never appears)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        self._partial.unlink(missing_ok=True)
+
+    def __enter__(self) -> LearningHistoryWriter:
+        return self
+
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+# --------------------------------------------------------------------------------------------
+# Reader
+
+
+class LearningHistory:
+    """Lazy, fork-safe reader of one history file.
+
+    The HDF5 handle is opened on first use and re-opened whenever ``os.getpid()`` changed: HDF5
+    handles must not be shared across a fork, and forked ``DataLoader`` workers inherit this object.
+    Pickling drops the handle too (spawned workers). Reads touch only the slices they need.
+    """
+
+    def __init__(self, path: PathLike) -> None:
+        self.path = Path(path)
+        self._handle: h5py.File | None = None
+        self._pid: int | None = None
+        self._layout: Layout | None = None
+        self._episode_starts: np.ndarray | None = None
+
+    @property
+    def _file(self) -> h5py.File:
+        if self._handle is None or self._pid != os.getpid():
+            # A handle inherited through fork is replaced, never used: HDF5 state is not fork-safe.
+            self._handle, self._pid = open_hdf5(self.path), os.getpid()
+        return self._handle
+
+    @property
+    def layout(self) -> Layout:
+        """The file's groups in step order (checked once; a file that cannot be indexed raises)."""
+        if self._layout is None:
+            with translate_hdf5_errors(self.path):
+                layout = inspect_layout(self._file)
+            if layout.problems:
+                raise DatasetError(self.path, "; ".join(layout.problems))
+            self._layout = layout
+        return self._layout
+
+    @property
+    def num_steps(self) -> int:
+        """Rows in the history."""
+        return self.layout.groups[-1].stop
+
+    @property
+    def obs_dim(self) -> int:
+        """Observation size (``proprio_observation`` columns)."""
+        assert self.layout.obs_dim is not None
+        return self.layout.obs_dim
+
+    @property
+    def act_dim(self) -> int:
+        """Action size."""
+        assert self.layout.act_dim is not None
+        return self.layout.act_dim
+
+    def __len__(self) -> int:
+        return self.num_steps
+
+    def _column(self, name: str) -> np.ndarray:
+        """One dataset over the whole history (1-D columns only: a few bytes per step)."""
+        with translate_hdf5_errors(self.path):
+            return np.concatenate([self._file[g.name][name][()] for g in self.layout.groups])
+
+    @property
+    def episode_starts(self) -> np.ndarray:
+        """Row indices where ``step_num == 0`` (cached)."""
+        if self._episode_starts is None:
+            self._episode_starts = np.flatnonzero(self._column("step_num") == 0)
+        return self._episode_starts
+
+    def episode_returns(self) -> np.ndarray:
+        """Sum of rewards of each episode, in order (the last one may be cut short by the history's end)."""
+        starts = self.episode_starts
+        if len(starts) == 0 or starts[0] != 0:
+            raise DatasetError(
+                self.path, "does not start with step_num 0, so episodes are ambiguous; run `vintix data validate`"
+            )
+        return np.add.reduceat(self._column("reward").astype(np.float64), starts)
+
+    def read(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        """Rows [start, stop) as ``observation``, ``action``, ``reward``, ``step_num`` in official dtypes."""
+        groups = self.layout.groups
+        if not 0 <= start <= stop <= self.num_steps:
+            raise IndexError(f"{self.path}: rows [{start}, {stop}) are outside [0, {self.num_steps})")
+        first = bisect_right([g.start for g in groups], start) - 1
+        # An empty range still reads a 0-row slice of one group so the result has the right shapes.
+        spans = list(takewhile(lambda g: g.start < stop, groups[first + 1 :]))
+        spans.insert(0, groups[first])
+        parts: dict[str, list[np.ndarray]] = {key: [] for key in FIELDS}
+        with translate_hdf5_errors(self.path):
+            for g in spans:
+                lo, hi = max(start, g.start) - g.start, min(stop, g.stop) - g.start
+                group = self._file[g.name]
+                for key, disk in FIELDS.items():
+                    parts[key].append(group[disk][lo:hi])
+        # Cast so callers always get the official dtypes, even from a file that validation would flag.
+        return {key: np.concatenate(parts[key]).astype(DTYPES[disk], copy=False) for key, disk in FIELDS.items()}
+
+    def close(self) -> None:
+        """Close the handle now (it would re-open on next use)."""
+        if self._handle is not None and self._pid == os.getpid():
+            self._handle.close()
+        self._handle = None
+
+    def __enter__(self) -> LearningHistory:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "_handle": None, "_pid": None}
+
+    def __repr__(self) -> str:
+        return f"LearningHistory({str(self.path)!r})"
+
+
+# --------------------------------------------------------------------------------------------
+# Task metadata and discovery
+
+
+_REQUIRED_KEYS = ("task_name", "observation_shape", "action_dim", "action_type")
+
+
+def task_directory(root: PathLike, domain: str, task_dir_name: str) -> Path:
+    """``<root>/<domain>/<task_dir_name>``: where a task's JSON and histories live."""
+    return Path(root) / domain / task_dir_name
+
+
+def metadata_path(task_dir: PathLike) -> Path:
+    """The task JSON is named after its folder: ``<task_dir>/<task_dir>.json``."""
+    task_dir = Path(task_dir)
+    return task_dir / f"{task_dir.name}.json"
+
+
+def write_task_metadata(task_dir: PathLike, task_name: str, obs_dim: int, act_dim: int, **extra: Any) -> Path:
+    """Write the task JSON atomically (extra keys such as ``reward_scale`` or ``group`` are kept)."""
+    clash = set(extra) & set(_REQUIRED_KEYS)
+    if clash:
+        raise ValueError(f"extra metadata keys {sorted(clash)} would overwrite required ones; pass them as arguments")
+    meta = {"task_name": task_name, "observation_shape": {"proprio": [obs_dim]}, "action_dim": act_dim,
+            "action_type": "continuous", **extra}
+    path = metadata_path(task_dir)
+    atomic_write_text(path, json.dumps(meta, indent=2) + "\n")
+    return path
+
+
+def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
+    """Load and check the task JSON; see `metadata_dims` for the dims it declares."""
+    path = metadata_path(task_dir)
+    fix = "fix it or rewrite it with vintix.data.write_task_metadata()"
+    if not path.is_file():
+        raise DatasetError(
+            path, f"missing task metadata (keys {list(_REQUIRED_KEYS)}); write it with write_task_metadata()"
+        )
+    try:
+        meta = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise DatasetError(path, f"not valid JSON ({err}); {fix}") from err
+    if not isinstance(meta, dict) or any(key not in meta for key in _REQUIRED_KEYS):
+        raise DatasetError(path, f"needs keys {list(_REQUIRED_KEYS)}; {fix}")
+    proprio = meta["observation_shape"].get("proprio") if isinstance(meta["observation_shape"], dict) else None
+    checks = {
+        "task_name must be a non-empty string": isinstance(meta["task_name"], str) and meta["task_name"],
+        "observation_shape must be {'proprio': [obs_dim]}": (
+            isinstance(proprio, list) and len(proprio) == 1 and _is_dim(proprio[0])
+        ),
+        "action_dim must be a positive integer": _is_dim(meta["action_dim"]),
+        "action_type must be 'continuous'": meta["action_type"] == "continuous",
+    }
+    for rule, ok in checks.items():
+        if not ok:
+            raise DatasetError(path, f"{rule}; {fix}")
+    return meta
+
+
+def _is_dim(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value > 0
+
+
+def metadata_dims(meta: dict[str, Any]) -> tuple[int, int]:
+    """(obs_dim, act_dim) declared by a task JSON read with `read_task_metadata`."""
+    return meta["observation_shape"]["proprio"][0], meta["action_dim"]
+
+
+def task_dirs(root: PathLike) -> list[Path]:
+    """Every ``<root>/<domain>/<task_dir>`` folder, sorted; hidden folders are skipped."""
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(root, "dataset root is not a directory; check the path")
+
+    def subdirs(folder: Path) -> list[Path]:
+        return sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith("."))
+
+    return [task for domain in subdirs(root) for task in subdirs(domain)]
+
+
+def history_paths(task_dir: PathLike) -> list[Path]:
+    """The task's finished histories, sorted (``*.h5.partial`` files are unfinished and never match)."""
+    return sorted(p for p in Path(task_dir).glob("*.h5") if p.is_file())
+
+
+@dataclass(frozen=True)
+class TaskData:
+    """One task folder of a dataset: its metadata and learning history files."""
+
+    domain: str
+    task_dir: Path
+    task_name: str
+    obs_dim: int
+    act_dim: int
+    metadata: dict[str, Any] = field(repr=False)
+    history_paths: list[Path] = field(repr=False)
+
+
+def find_tasks(root: PathLike) -> list[TaskData]:
+    """Discover every task of a dataset root; raises DatasetError on a missing or malformed task JSON."""
+    tasks = []
+    for task_dir in task_dirs(root):
+        meta = read_task_metadata(task_dir)
+        obs_dim, act_dim = metadata_dims(meta)
+        tasks.append(TaskData(
+            task_dir.parent.name, task_dir, meta["task_name"], obs_dim, act_dim, meta, history_paths(task_dir)
+        ))
+    return tasks

@@ -1,0 +1,178 @@
+"""Dataset validation and statistics (behind ``vintix data validate`` and ``vintix data stats``).
+
+Validation reports every problem it finds instead of stopping at the first, one message per kind
+of problem per file, each naming the fix. It reads histories one group (≤ 10,000 rows) at a time,
+so memory stays small however large the dataset is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from vintix.data.hdf5 import (
+    DTYPES,
+    MAX_GROUP_ROWS,
+    DatasetError,
+    GroupSpan,
+    LearningHistory,
+    PathLike,
+    ProblemLog,
+    find_tasks,
+    history_paths,
+    inspect_layout,
+    metadata_dims,
+    metadata_path,
+    open_hdf5,
+    read_task_metadata,
+    step_num_breaks,
+    task_dirs,
+    translate_hdf5_errors,
+)
+
+ExpectedDims = Callable[[str], tuple[int, int] | None]
+"""task_name -> (obs_dim, act_dim) from the task registry, or None for a task it does not know."""
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with one file or folder of a dataset."""
+
+    path: Path
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.message}"
+
+
+def validate_dataset(root: PathLike, expected_dims: ExpectedDims | None = None) -> list[Problem]:
+    """Every problem of the dataset at ``root``; an empty list means it follows the official format."""
+    try:
+        folders = task_dirs(root)
+    except DatasetError as err:
+        return [Problem(err.path, err.problem)]
+    if not folders:
+        return [Problem(Path(root), "no <domain>/<task_dir>/ folders found; point to the dataset root")]
+    return [problem for folder in folders for problem in validate_task(folder, expected_dims)]
+
+
+def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None) -> list[Problem]:
+    """Problems of one task folder: its JSON, leftovers of interrupted writes, and every history."""
+    task_dir = Path(task_dir)
+    problems: list[Problem] = []
+    dims = None
+    try:
+        meta = read_task_metadata(task_dir)
+        dims = metadata_dims(meta)
+        registry = expected_dims(meta["task_name"]) if expected_dims else None
+        if registry is not None and tuple(registry) != dims:
+            problems.append(Problem(
+                metadata_path(task_dir),
+                f"task {meta['task_name']!r} declares (obs_dim, act_dim) = {dims} but the task registry expects "
+                f"{tuple(registry)}; check the environment version (MuJoCo -v4 and -v5 dims differ) or fix the json",
+            ))
+    except DatasetError as err:
+        problems.append(Problem(err.path, err.problem))
+    problems += [Problem(p, "leftover of an interrupted write; delete it") for p in sorted(task_dir.glob("*.partial"))]
+    histories = history_paths(task_dir)
+    if not histories:
+        problems.append(Problem(task_dir, "no learning histories (*.h5); collect some or remove the folder"))
+    for path in histories:
+        problems += [Problem(path, message) for message in validate_history(path, dims)]
+    return problems
+
+
+def validate_history(path: PathLike, dims: tuple[int, int] | None = None) -> list[str]:
+    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares."""
+    path = Path(path)
+    messages: list[str] = []
+    try:
+        with open_hdf5(path) as file, translate_hdf5_errors(path):
+            layout = inspect_layout(file)
+            messages += layout.problems
+            if dims is not None and layout.obs_dim is not None and (layout.obs_dim, layout.act_dim) != dims:
+                messages.append(
+                    f"holds (obs_dim, act_dim) = ({layout.obs_dim}, {layout.act_dim}) but the task json declares "
+                    f"{dims}; the file belongs to another task, or the json is wrong"
+                )
+            messages += _check_contents(file, layout.groups)
+    except DatasetError as err:
+        messages.append(err.problem)
+    return messages
+
+
+def _check_contents(file: h5py.File, groups: list[GroupSpan]) -> list[str]:
+    """Official dtypes, group sizes, finite values and step_num counting, group by group in step order."""
+    log = ProblemLog()
+    recollect = "re-collect the history"
+    rewrite = "rewrite it with LearningHistoryWriter, which casts to the official dtypes"
+    previous_stop, last_step = 0, -1
+    for span in groups:
+        name, offset, rows = span.name, span.start, span.stop - span.start
+        if rows == 0:  # the layout check already reported that its name promises rows
+            continue
+        group = file[name]
+        if rows > MAX_GROUP_ROWS:
+            log.add("size", f"group {name!r} holds {rows} rows, more than {MAX_GROUP_ROWS}", rewrite)
+        for key, dtype in DTYPES.items():
+            if group[key].dtype != dtype:
+                where = f"{key} is {group[key].dtype} in group {name!r}, expected {dtype}"
+                log.add(f"dtype {key}", where, rewrite)
+        for key in ("proprio_observation", "action", "reward"):
+            bad_rows = ~np.isfinite(group[key][()]).reshape(rows, -1).all(axis=1)
+            if bad_rows.any():
+                where = f"NaN/inf in {key} at row {offset + np.argmax(bad_rows)}"
+                fix = f"the environment or policy diverged; {recollect}"
+                log.add(f"finite {key}", where, fix, int(bad_rows.sum()))
+        steps = group["step_num"][()]
+        # Across a gap (already reported by the layout check) only the group's own rows can be checked.
+        breaks = step_num_breaks(steps, last_step if offset == previous_stop else steps[0] - 1)
+        if len(breaks) and offset == 0 and breaks[0] == 0:
+            log.add("first step", f"starts at step_num {steps[0]}, expected 0 (a history starts with an episode)",
+                    recollect)
+            breaks = breaks[1:]
+        if len(breaks):
+            i = breaks[0]
+            before = last_step if i == 0 else steps[i - 1]
+            log.add(
+                "step_num",
+                f"step_num jumps from {before} to {steps[i]} at row {offset + i} (within an episode it must "
+                "increase by 1; 0 starts a new episode)",
+                recollect,
+                len(breaks),
+            )
+        previous_stop, last_step = span.stop, int(steps[-1])
+    return log.messages()
+
+
+@dataclass(frozen=True)
+class TaskSummary:
+    """Size of one task's data, for ``vintix data stats``."""
+
+    domain: str
+    task_name: str
+    histories: int
+    steps: int
+    episodes: int
+    mean_episode_length: float
+    """steps / episodes (NaN without episodes)."""
+
+
+def summarize_dataset(root: PathLike) -> list[TaskSummary]:
+    """Per-task counts, reading only the step_num column of each history; run validation first."""
+    summaries = []
+    for task in find_tasks(root):
+        steps = episodes = 0
+        for path in task.history_paths:
+            with LearningHistory(path) as history:
+                steps += history.num_steps
+                episodes += len(history.episode_starts)
+        mean_length = steps / episodes if episodes else float("nan")
+        summaries.append(
+            TaskSummary(task.domain, task.task_name, len(task.history_paths), steps, episodes, mean_length)
+        )
+    return summaries

@@ -1,0 +1,154 @@
+"""Dataset validation: a clean dataset passes, each kind of damage gives one clear problem naming the file."""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from vintix.data import (
+    LearningHistoryWriter,
+    summarize_dataset,
+    task_directory,
+    validate_dataset,
+    write_task_metadata,
+)
+
+OBS_DIM, ACT_DIM, EPISODE_LEN = 3, 2, 8
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    """Two tasks, three histories of 30 steps in groups of 7 ("0-6", ..., "28-29")."""
+    rng = np.random.default_rng(0)
+    for domain, task in [("mujoco", "hopper"), ("metaworld", "reach")]:
+        task_dir = task_directory(tmp_path, domain, task)
+        write_task_metadata(task_dir, f"{task}-v5", OBS_DIM, ACT_DIM)
+        for seed in range(2 if task == "hopper" else 1):
+            with LearningHistoryWriter(task_dir / f"{seed}.h5", OBS_DIM, ACT_DIM, chunk_size=7) as writer:
+                writer.append(rng.normal(size=(30, OBS_DIM)), rng.normal(size=(30, ACT_DIM)),
+                              rng.normal(size=30), np.arange(30) % EPISODE_LEN)
+    return tmp_path
+
+
+def hopper_file(root):
+    return root / "mujoco" / "hopper" / "0.h5"
+
+
+def only_problem(root, **kwargs):
+    problems = validate_dataset(root, **kwargs)
+    assert len(problems) == 1, problems
+    return problems[0]
+
+
+def test_clean_dataset_has_no_problems(dataset):
+    assert validate_dataset(dataset) == []
+    assert validate_dataset(dataset, expected_dims=lambda name: (OBS_DIM, ACT_DIM)) == []
+    assert validate_dataset(dataset, expected_dims=lambda name: None) == []  # unknown to the registry
+
+
+def test_dims_disagree_with_json(dataset):
+    write_task_metadata(dataset / "mujoco" / "hopper", "hopper-v5", OBS_DIM + 1, ACT_DIM)
+    problems = validate_dataset(dataset)
+    assert [p.path.name for p in problems] == ["0.h5", "1.h5"]
+    assert "(obs_dim, act_dim) = (3, 2)" in problems[0].message and "declares (4, 2)" in problems[0].message
+
+
+def test_dims_disagree_with_registry(dataset):
+    expected = {"hopper-v5": (11, 3)}
+    problem = only_problem(dataset, expected_dims=expected.get)
+    assert problem.path == dataset / "mujoco" / "hopper" / "hopper.json"
+    assert "(3, 2)" in problem.message and "registry expects (11, 3)" in problem.message
+
+
+def start_mid_episode(f: h5py.File) -> None:
+    """Step numbers 1..8 then 0, 1, ...: a history recorded from the second step of its first episode."""
+    f["0-6/step_num"][:] = np.arange(1, 8)
+    f["7-13/step_num"][0] = 8
+
+
+@pytest.mark.parametrize(
+    ("damage", "expected"),
+    [
+        (lambda f: f["7-13/reward"].__setitem__(2, np.nan), "NaN/inf in reward at row 9;"),
+        (lambda f: f.__delitem__("14-20"), "gap before group '21-27': expected a group starting at step 14"),
+        (start_mid_episode, "starts at step_num 1, expected 0"),
+        (lambda f: f["7-13/step_num"].__setitem__(3, 4), "step_num jumps from 1 to 4 at row 10"),
+        (lambda f: f.move("28-29", "28-30"), "group '28-30' is named for 3 steps but holds 2"),
+        (lambda f: f["0-6"].__delitem__("action"), "group '0-6' lacks dataset(s) ['action']"),
+    ],
+)
+def test_damage_is_reported_once_with_its_file(dataset, damage, expected):
+    with h5py.File(hopper_file(dataset), "r+") as f:
+        damage(f)
+    problem = only_problem(dataset)
+    assert problem.path == hopper_file(dataset)
+    assert expected in problem.message
+
+
+def test_wrong_dtype(dataset):
+    with h5py.File(hopper_file(dataset), "r+") as f:
+        for name in ("0-6", "7-13"):
+            rewards = f[f"{name}/reward"][()]
+            del f[f"{name}/reward"]
+            f[f"{name}/reward"] = rewards.astype(np.float64)
+    problem = only_problem(dataset)
+    assert "reward is float64 in group '0-6', expected float32 (2 occurrences in this file)" in problem.message
+
+
+def test_repeated_problems_are_capped(dataset):
+    with h5py.File(hopper_file(dataset), "r+") as f:
+        for name in f:
+            f[f"{name}/proprio_observation"][...] = np.inf
+    problem = only_problem(dataset)
+    assert problem.message.startswith("NaN/inf in proprio_observation at row 0 (30 occurrences in this file)")
+
+
+def test_oversized_group(tmp_path):
+    task_dir = task_directory(tmp_path, "mujoco", "big")
+    write_task_metadata(task_dir, "big", 1, 1)
+    n = 10_001
+    with h5py.File(task_dir / "0.h5", "w") as f:
+        group = f.create_group(f"0-{n - 1}")
+        group["proprio_observation"] = np.zeros((n, 1), np.float32)
+        group["action"] = np.zeros((n, 1), np.float32)
+        group["reward"] = np.zeros(n, np.float32)
+        group["step_num"] = (np.arange(n) % 100).astype(np.int32)
+    assert "holds 10001 rows, more than 10000" in only_problem(tmp_path).message
+
+
+def test_truncated_file(dataset):
+    path = hopper_file(dataset)
+    with open(path, "r+b") as f:
+        f.truncate(path.stat().st_size - 100)
+    problem = only_problem(dataset)
+    assert problem.path == path
+    assert "not a readable HDF5 file (truncated or corrupted?)" in problem.message
+    assert str(path) in str(problem)
+
+
+def test_folder_level_problems(dataset):
+    hopper = dataset / "mujoco" / "hopper"
+    (hopper / "hopper.json").unlink()
+    (hopper / "2.h5.partial").write_bytes(b"")
+    (dataset / "mujoco" / "empty").mkdir()
+    found = [(p.path.relative_to(dataset).as_posix(), p.message.split(";")[0]) for p in validate_dataset(dataset)]
+    assert found == [
+        ("mujoco/empty/empty.json", "missing task metadata (keys ['task_name', 'observation_shape', 'action_dim', "
+                                    "'action_type'])"),
+        ("mujoco/empty", "no learning histories (*.h5)"),
+        ("mujoco/hopper/hopper.json", "missing task metadata (keys ['task_name', 'observation_shape', 'action_dim', "
+                                      "'action_type'])"),
+        ("mujoco/hopper/2.h5.partial", "leftover of an interrupted write"),
+    ]
+    assert "not a directory" in only_problem(dataset / "nowhere").message
+
+
+def test_summary(dataset):
+    summary = {s.task_name: s for s in summarize_dataset(dataset)}
+    hopper = summary["hopper-v5"]
+    assert (hopper.domain, hopper.histories, hopper.steps, hopper.episodes) == ("mujoco", 2, 60, 8)
+    assert math.isclose(hopper.mean_episode_length, 7.5)
+    assert (summary["reach-v5"].histories, summary["reach-v5"].steps, summary["reach-v5"].episodes) == (1, 30, 4)
