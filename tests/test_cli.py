@@ -38,3 +38,46 @@ def test_check_envs_writes_its_results(tmp_path):
 def test_check_envs_unknown_task_exits_with_a_message():
     result = runner.invoke(app, ["check-envs", "Hoper-v5"])
     assert result.exit_code == 2 and "Did you mean" in result.output
+
+
+def write_rollout_dataset(root, task="InvertedPendulum-v5", steps=120):
+    """A real (random-policy) learning history in the official layout."""
+    from vintix import get_task, make_env
+    from vintix.data import LearningHistoryWriter, task_directory, write_task_metadata
+
+    spec = get_task(task)
+    task_dir = task_directory(root, spec.domain, spec.name)
+    write_task_metadata(task_dir, spec.name, spec.obs_dim, spec.act_dim)
+    env = make_env(task, seed=0)
+    obs, _ = env.reset()
+    step = 0
+    with LearningHistoryWriter(task_dir / "history_0.h5", spec.obs_dim, spec.act_dim) as writer:
+        for _ in range(steps):
+            action = env.action_space.sample()
+            next_obs, reward, terminated, truncated, _ = env.step(action)
+            writer.append(obs, action, reward, step)
+            obs, step = next_obs, step + 1
+            if terminated or truncated:
+                (obs, _), step = env.reset(), 0
+    return task_dir / "history_0.h5"
+
+
+def test_data_validate_and_stats_on_a_real_dataset(tmp_path):
+    write_rollout_dataset(tmp_path)
+    result = runner.invoke(app, ["data", "validate", str(tmp_path)])
+    assert result.exit_code == 0 and "1 task folder(s)" in result.output, result.output
+    result = runner.invoke(app, ["data", "stats", str(tmp_path)])
+    assert result.exit_code == 0 and "InvertedPendulum-v5" in result.output and "120" in result.output
+
+
+def test_data_validate_reports_a_truncated_file_by_name(tmp_path):
+    path = write_rollout_dataset(tmp_path)
+    path.write_bytes(path.read_bytes()[:1000])
+    result = runner.invoke(app, ["data", "validate", str(tmp_path)])
+    assert result.exit_code == 1
+    assert "history_0.h5" in result.output and "truncated or corrupted" in result.output
+
+
+def test_data_validate_on_an_empty_folder_says_what_to_point_at(tmp_path):
+    result = runner.invoke(app, ["data", "validate", str(tmp_path)])
+    assert result.exit_code == 2 and "dataset root" in result.output

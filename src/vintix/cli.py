@@ -15,9 +15,11 @@ from rich.table import Table
 
 from vintix.atomic import atomic_write_text
 from vintix.errors import VintixError
-from vintix.tasks import list_tasks, resolve_tasks
+from vintix.tasks import get_task, list_tasks, resolve_tasks
 
 app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True)
+data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one).", no_args_is_help=True)
+app.add_typer(data_app, name="data")
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
 console = Console(width=None if sys.stdout.isatty() else 160)
 
@@ -91,6 +93,54 @@ def check_envs(
                              "" if result.paper_z is None else f"{result.paper_z:.3f}", f"{result.steps_per_second:.0f}"])
         atomic_write_text(out, buffer.getvalue())
         console.print(f"wrote {out}")
+
+
+def registry_dims(task_name: str) -> tuple[int, int] | None:
+    """(obs_dim, act_dim) the registry expects for a dataset's task name; None if it is not ours."""
+    try:
+        spec = get_task(task_name)
+    except VintixError:
+        return None
+    return spec.obs_dim, spec.act_dim
+
+
+@data_app.command("validate")
+def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")]) -> None:
+    """Check a dataset's structure, dtypes, dims (vs the task registry), step numbers and values."""
+    from vintix.data import task_dirs, validate_task
+    from vintix.errors import DatasetError
+
+    try:
+        folders = task_dirs(root)
+    except DatasetError as error:
+        raise _fail(error)
+    if not folders:
+        raise _fail(DatasetError(root, "no <domain>/<task_dir>/ folders found; point to the dataset root"))
+    problems = [p for folder in track(folders, description="validating") for p in validate_task(folder, registry_dims)]
+    for problem in problems:
+        console.print(f"[red]✗[/red] {problem}", highlight=False)
+    if problems:
+        console.print(f"{len(problems)} problem(s) in {root}")
+        raise typer.Exit(code=1)
+    console.print(f"[green]✓[/green] {len(folders)} task folder(s) in {root} follow the format")
+
+
+@data_app.command("stats")
+def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")]) -> None:
+    """Histories, steps and episodes per task."""
+    from vintix.data import summarize_dataset
+    from vintix.errors import DatasetError
+
+    try:
+        summaries = summarize_dataset(root)
+    except DatasetError as error:
+        raise _fail(error)
+    table = Table(title=f"dataset {root}")
+    for column in ("domain", "task", "histories", "steps", "episodes", "mean episode length"):
+        table.add_column(column, justify="left" if column in ("domain", "task") else "right")
+    for s in summaries:
+        table.add_row(s.domain, s.task_name, str(s.histories), f"{s.steps:,}", f"{s.episodes:,}", f"{s.mean_episode_length:.1f}")
+    console.print(table)
 
 
 if __name__ == "__main__":
