@@ -1,0 +1,426 @@
+"""The Vintix model: per-group encoders -> causal ALiBi transformer -> per-group action heads.
+
+One token per environment step t: ``[enc_obs(o_t) | enc_act(a_{t-1}) | enc_rew(r_{t-1})]``, and the
+output at that token predicts ``a_t`` (paper §2.3). Tasks with the same observation/action space and
+channel meaning share a *group*: one encoder set and one action head. The model sees the group and,
+through normalization only, the task; it never gets a task identifier it could condition on.
+
+Read top to bottom: config and presets, attention with ALiBi, the transformer block, per-group
+encoders and heads, the model, parameter counting.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from vintix.errors import UnknownTaskError
+
+# ----------------------------------------------------------------------------------------------
+# Configuration
+
+
+_ACTIVATIONS = {"gelu": nn.GELU, "leaky_relu": nn.LeakyReLU}
+
+
+@dataclass
+class ModelConfig:
+    """Sizes of the model and how it treats its inputs; start from a preset (below)."""
+
+    n_layers: int = 4
+    """transformer blocks"""
+    n_heads: int = 4
+    """attention heads; d_model must divide evenly"""
+    obs_emb_dim: int = 63
+    """width of the observation part of a token"""
+    act_emb_dim: int = 63
+    """width of the previous-action part of a token"""
+    rew_emb_dim: int = 2
+    """width of the previous-reward part of a token (a scalar needs few dimensions)"""
+    mlp_dim: int = 512
+    """hidden width of the transformer's feed-forward layer"""
+    head_layers: int = 3
+    """hidden layers (width d_model) in each group's action head; 3 as in the official release"""
+    context_len: int = 1024
+    """longest window in steps (tokens) the model is trained on and attends over at inference"""
+    dropout: float = 0.0
+    """dropout on attention probabilities and residual branches (the paper lists none; on CPU any
+    attention dropout forces the unfused attention path, about 2x slower at 1024 steps)"""
+    std_floor: float = 1e-2
+    """lower bound on per-task observation std, so near-constant channels are not blown up"""
+    mask_reward: bool = False
+    """'AD without rewards' ablation: the reward embedding is always the padding vector"""
+    activation: str = "gelu"
+    """activation in encoders and heads: 'gelu', or 'leaky_relu' as in the official release"""
+
+    @property
+    def d_model(self) -> int:
+        """Transformer width: the three token parts side by side."""
+        return self.obs_emb_dim + self.act_emb_dim + self.rew_emb_dim
+
+    def __post_init__(self) -> None:
+        if self.d_model % self.n_heads:
+            raise ValueError(
+                f"d_model = {self.obs_emb_dim}+{self.act_emb_dim}+{self.rew_emb_dim} = "
+                f"{self.d_model} is not divisible by n_heads = {self.n_heads}"
+            )
+        if self.activation not in _ACTIVATIONS:
+            raise ValueError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}")
+
+# tiny: ~0.8M backbone parameters, the size that learned in context on Meta-World within 15 CPU
+#   minutes (DESIGN §6); a 1024-step window holds 10 Meta-World or 4 Industrial Benchmark episodes.
+#   Measured: ~4k training tokens/s on 2 cores (one group, fp32), ~14M tokens an hour; a 512-step
+#   window roughly doubles that, since attention dominates at this width.
+# small: a single-GPU model (~14M backbone parameters) with a 2048-step window.
+# paper: the paper's hyperparameter table (20 layers, 16 heads, 511+511+2, MLP 4096, 8192 steps).
+PRESETS: dict[str, ModelConfig] = {
+    "tiny": ModelConfig(),
+    "small": ModelConfig(
+        n_layers=8, n_heads=8, obs_emb_dim=191, act_emb_dim=191, rew_emb_dim=2,
+        mlp_dim=1536, context_len=2048,
+    ),
+    "paper": ModelConfig(
+        n_layers=20, n_heads=16, obs_emb_dim=511, act_emb_dim=511, rew_emb_dim=2,
+        mlp_dim=4096, context_len=8192,
+    ),
+}
+
+
+def preset(name: str, **overrides: object) -> ModelConfig:
+    """A fresh copy of a preset config, with any field overridden."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown model preset {name!r}; choose one of {sorted(PRESETS)}")
+    return replace(PRESETS[name], **overrides)
+
+
+@dataclass
+class GroupSpec:
+    """Tasks sharing one observation/action space (and channel meaning) share encoders and a head."""
+
+    name: str
+    obs_dim: int
+    act_dim: int
+
+
+@dataclass
+class TaskNorm:
+    """Per-task input normalization, computed once per dataset and stored in the checkpoint."""
+
+    task: str
+    group: str
+    obs_mean: Sequence[float] | np.ndarray
+    obs_std: Sequence[float] | np.ndarray
+    reward_scale: float = 1.0
+
+
+# ----------------------------------------------------------------------------------------------
+# Attention with ALiBi: relative positions only, so a sliding KV-cache window needs no re-encoding.
+
+
+def alibi_slopes(n_heads: int) -> torch.Tensor:
+    """Per-head slopes of the ALiBi paper: a geometric sequence 2^(-8/n), 2^(-16/n), ... for n a power
+    of two; otherwise the slopes for the closest lower power of two, topped up with every other slope
+    of the next power of two (the paper's recipe, so the head count need not be a power of two)."""
+
+    def power_of_2(n: int) -> list[float]:
+        start = 2.0 ** (-8.0 / n)
+        return [start ** (i + 1) for i in range(n)]
+
+    if math.log2(n_heads).is_integer():
+        slopes = power_of_2(n_heads)
+    else:
+        closest = 2 ** math.floor(math.log2(n_heads))
+        slopes = power_of_2(closest) + power_of_2(2 * closest)[0::2][: n_heads - closest]
+    return torch.tensor(slopes, dtype=torch.float32)
+
+
+def alibi_bias(q_pos: torch.Tensor, k_pos: torch.Tensor, slopes: torch.Tensor) -> torch.Tensor:
+    """Additive attention bias ``-slope * (q_pos - k_pos)``, ``-inf`` where ``k_pos > q_pos``.
+
+    Positions are absolute step indices, ``[Tq]`` and ``[Tk]`` (or batched ``[B, Tq]``/``[B, Tk]``),
+    so a KV cache whose key window starts anywhere uses the same function; a cache slot can be hidden
+    by giving it a position larger than every query. Returns ``[..., H, Tq, Tk]`` in fp32.
+    """
+    rel = (q_pos.unsqueeze(-1) - k_pos.unsqueeze(-2)).unsqueeze(-3)  # [..., 1, Tq, Tk]
+    bias = -slopes.view(-1, 1, 1) * rel.to(slopes.dtype)
+    return bias.masked_fill(rel < 0, float("-inf"))
+
+
+def attention(
+    q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, bias: torch.Tensor, dropout_p: float = 0.0
+) -> torch.Tensor:
+    """Softmax(q kᵀ / √d + bias) v over ``[B, H, T, head_dim]`` tensors.
+
+    Takes the bias rather than building it from positions so the backbone can build it once per
+    forward and share it across layers: autograd keeps the bias for every layer's backward, and at
+    the paper's size one copy is 2 GB (FlashAttention's built-in ALiBi, an optional GPU fast path,
+    would avoid materializing it at all).
+    """
+    return F.scaled_dot_product_attention(q, k, v, attn_mask=bias.to(q.dtype), dropout_p=dropout_p)
+
+
+class SelfAttention(nn.Module):
+    """Multi-head self-attention with one packed qkv projection and qk-LayerNorm.
+
+    qk-LayerNorm bounds the attention logits, which keeps long-context bf16 training stable.
+    ``project_qkv`` and ``proj`` are public so a KV-cache step can project only the new tokens, append
+    their k and v to the cache and call ``attention`` against the whole window.
+    """
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.n_heads = config.n_heads
+        head_dim = config.d_model // config.n_heads
+        self.qkv = nn.Linear(config.d_model, 3 * config.d_model)
+        self.q_norm = nn.LayerNorm(head_dim)
+        self.k_norm = nn.LayerNorm(head_dim)
+        self.proj = nn.Linear(config.d_model, config.d_model)
+        self.dropout = config.dropout
+
+    def project_qkv(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """q, k, v as ``[B, H, T, head_dim]``, q and k LayerNorm-ed."""
+        B, T, _ = x.shape
+        q, k, v = self.qkv(x).view(B, T, 3, self.n_heads, -1).unbind(2)
+        # LayerNorm runs in fp32 under autocast; cast back so q, k, v share v's (bf16) dtype.
+        q = self.q_norm(q).to(v.dtype)
+        k = self.k_norm(k).to(v.dtype)
+        return q.transpose(1, 2), k.transpose(1, 2), v.transpose(1, 2)
+
+    def forward(self, x: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
+        B, T, D = x.shape
+        q, k, v = self.project_qkv(x)
+        y = attention(q, k, v, bias, self.dropout if self.training else 0.0)
+        return self.proj(y.transpose(1, 2).reshape(B, T, D))
+
+
+class MLP(nn.Module):
+    """GPT-NeoX feed-forward: Linear, GELU, Linear."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.fc = nn.Linear(config.d_model, config.mlp_dim)
+        self.proj = nn.Linear(config.mlp_dim, config.d_model)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.proj(F.gelu(self.fc(x)))
+
+
+class Block(nn.Module):
+    """Pre-LN transformer block."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.ln_1 = nn.LayerNorm(config.d_model)
+        self.attn = SelfAttention(config)
+        self.ln_2 = nn.LayerNorm(config.d_model)
+        self.mlp = MLP(config)
+        self.drop = nn.Dropout(config.dropout)
+
+    def forward(self, x: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
+        x = x + self.drop(self.attn(self.ln_1(x), bias))
+        return x + self.drop(self.mlp(self.ln_2(x)))
+
+
+# ----------------------------------------------------------------------------------------------
+# Per-group encoders and action heads (shapes as in the official release, so its checkpoint maps
+# onto these modules).
+
+
+def _encoder_mlp(in_dim: int, out_dim: int, activation: str) -> nn.Sequential:
+    # The LayerNorms keep the observation and action parts of a token at unit scale whatever the
+    # raw channel scales of a group are.
+    act = _ACTIVATIONS[activation]
+    return nn.Sequential(
+        nn.Linear(in_dim, out_dim), act(), nn.LayerNorm(out_dim),
+        nn.Linear(out_dim, out_dim), act(), nn.LayerNorm(out_dim),
+    )
+
+
+class GroupEncoder(nn.Module):
+    """Turns one group's (normalized obs, previous action, scaled previous reward) into tokens."""
+
+    def __init__(self, spec: GroupSpec, config: ModelConfig):
+        super().__init__()
+        self.obs = _encoder_mlp(spec.obs_dim, config.obs_emb_dim, config.activation)
+        self.act = _encoder_mlp(spec.act_dim, config.act_emb_dim, config.activation)
+        # No reward encoder at all under mask_reward: parameters that never get a gradient would
+        # make DDP fail.
+        self.rew = (
+            None if config.mask_reward
+            else nn.Sequential(nn.Linear(1, config.rew_emb_dim), _ACTIVATIONS[config.activation]())
+        )
+        # Episode starts have no previous action/reward; a learned vector says so.
+        self.act_pad = nn.Parameter(torch.empty(config.act_emb_dim))
+        self.rew_pad = nn.Parameter(torch.empty(config.rew_emb_dim))
+
+    def forward(
+        self, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
+        episode_start: torch.Tensor,
+    ) -> torch.Tensor:
+        start = episode_start.unsqueeze(-1)
+        e_obs = self.obs(obs)
+        e_act = torch.where(start, self.act_pad, self.act(prev_action))
+        if self.rew is None:
+            e_rew = self.rew_pad.expand(*e_obs.shape[:-1], -1)
+        else:
+            e_rew = torch.where(start, self.rew_pad, self.rew(prev_reward.unsqueeze(-1)))
+        return torch.cat([e_obs, e_act, e_rew], dim=-1)
+
+
+def _action_head(d_model: int, act_dim: int, hidden_layers: int, activation: str) -> nn.Sequential:
+    # Unbounded output: targets are raw actions and MSE needs no squashing.
+    layers: list[nn.Module] = []
+    for _ in range(hidden_layers):
+        layers += [nn.Linear(d_model, d_model), _ACTIVATIONS[activation]()]
+    return nn.Sequential(*layers, nn.Linear(d_model, act_dim))
+
+
+# ----------------------------------------------------------------------------------------------
+# The model
+
+
+class Vintix(nn.Module):
+    """Next-action model over multi-episode learning histories.
+
+    Training: ``forward(group, task_idx, obs, prev_action, prev_reward, step_num)`` with every
+    sequence of the batch from ``group``. To mix groups in one batch, ``embed`` each group's
+    sub-batch, concatenate along the batch dim, run ``backbone`` once, split, and ``head`` each part.
+    """
+
+    def __init__(self, config: ModelConfig, groups: Sequence[GroupSpec], task_norms: Sequence[TaskNorm]):
+        super().__init__()
+        self.config = config
+        self.groups = {g.name: g for g in groups}
+        if len(self.groups) != len(groups):
+            raise ValueError("group names must be unique")
+        self.task_norms = list(task_norms)
+        self._task_index = {t.task: i for i, t in enumerate(self.task_norms)}
+        if len(self._task_index) != len(self.task_norms):
+            raise ValueError("task names in task_norms must be unique")
+        self._group_index = {name: i for i, name in enumerate(self.groups)}
+
+        # Normalization lives in the model so training and inference cannot disagree. Statistics
+        # are padded to the widest group; each group reads its first obs_dim columns.
+        max_obs = max(g.obs_dim for g in groups)
+        obs_mean = np.zeros((len(self.task_norms), max_obs), dtype=np.float32)
+        obs_std = np.ones((len(self.task_norms), max_obs), dtype=np.float32)
+        for i, t in enumerate(self.task_norms):
+            if t.group not in self.groups:
+                raise ValueError(f"task {t.task!r} names unknown group {t.group!r}")
+            dim = self.groups[t.group].obs_dim
+            mean, std = np.asarray(t.obs_mean, np.float32), np.asarray(t.obs_std, np.float32)
+            if mean.shape != (dim,) or std.shape != (dim,):
+                raise ValueError(
+                    f"task {t.task!r}: obs_mean {mean.shape} / obs_std {std.shape} do not match "
+                    f"group {t.group!r} obs_dim {dim}"
+                )
+            obs_mean[i, :dim], obs_std[i, :dim] = mean, np.maximum(std, config.std_floor)
+        self.register_buffer("obs_mean", torch.tensor(obs_mean))
+        self.register_buffer("obs_std", torch.tensor(obs_std))
+        self.register_buffer(
+            "reward_scale", torch.tensor([t.reward_scale for t in self.task_norms], dtype=torch.float32)
+        )
+        self.register_buffer(
+            "task_group", torch.tensor([self._group_index[t.group] for t in self.task_norms], dtype=torch.long)
+        )
+        self.register_buffer("alibi_slopes", alibi_slopes(config.n_heads), persistent=False)
+
+        self.encoders = nn.ModuleDict({g.name: GroupEncoder(g, config) for g in groups})
+        self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
+        self.ln_f = nn.LayerNorm(config.d_model)
+        self.heads = nn.ModuleDict(
+            {g.name: _action_head(config.d_model, g.act_dim, config.head_layers, config.activation) for g in groups}
+        )
+        self.apply(self._init_weights)
+        for name, p in self.named_parameters():
+            if name.endswith(("attn.proj.weight", "mlp.proj.weight")):
+                # GPT-2: each block adds two residual branches; keep the residual stream's variance
+                # independent of depth.
+                nn.init.normal_(p, mean=0.0, std=0.02 / math.sqrt(2 * config.n_layers))
+            elif name.endswith(("act_pad", "rew_pad")):
+                # Same unit scale as the LayerNorm-ed embeddings they stand in for.
+                nn.init.normal_(p, mean=0.0, std=1.0)
+            elif name.endswith("rew.0.weight"):
+                # One input: std 0.02 would make the reward a whisper next to the unit-scale
+                # obs/action parts; 1/sqrt(fan_in) = 1 keeps it audible from the first step.
+                nn.init.normal_(p, mean=0.0, std=1.0)
+
+    @staticmethod
+    def _init_weights(module: nn.Module) -> None:
+        if isinstance(module, nn.Linear):
+            nn.init.normal_(module.weight, mean=0.0, std=0.02)
+            nn.init.zeros_(module.bias)
+        elif isinstance(module, nn.LayerNorm):
+            nn.init.ones_(module.weight)
+            nn.init.zeros_(module.bias)
+
+    def task_index(self, name: str) -> int:
+        """Index of a task in ``task_norms``: what ``task_idx`` holds."""
+        if name not in self._task_index:
+            raise UnknownTaskError(f"task {name!r} has no normalization statistics in this model")
+        return self._task_index[name]
+
+    def normalize(
+        self, task_idx: torch.Tensor, obs: torch.Tensor, reward: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per-task z-scored observations ``[B, T, obs_dim]`` and scaled rewards ``[B, T]``."""
+        dim = obs.shape[-1]
+        mean = self.obs_mean[task_idx, :dim].unsqueeze(1)
+        std = self.obs_std[task_idx, :dim].unsqueeze(1)
+        return (obs - mean) / std, reward * self.reward_scale[task_idx].unsqueeze(1)
+
+    def embed(
+        self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
+        prev_reward: torch.Tensor, step_num: torch.Tensor,
+    ) -> torch.Tensor:
+        """Tokens ``[B, T, d_model]``; at ``step_num == 0`` prev_action/prev_reward are ignored."""
+        spec = self.groups.get(group)
+        if spec is None:
+            raise ValueError(f"unknown group {group!r}; the model has {sorted(self.groups)}")
+        if obs.shape[-1] != spec.obs_dim or prev_action.shape[-1] != spec.act_dim:
+            raise ValueError(
+                f"group {group!r} expects obs_dim {spec.obs_dim} and act_dim {spec.act_dim}, got "
+                f"obs {tuple(obs.shape)} and prev_action {tuple(prev_action.shape)}"
+            )
+        if (self.task_group[task_idx] != self._group_index[group]).any():
+            raise ValueError(f"task_idx {task_idx.tolist()} holds tasks outside group {group!r}")
+        obs, prev_reward = self.normalize(task_idx, obs, prev_reward)
+        return self.encoders[group](obs, prev_action, prev_reward, step_num == 0)
+
+    def backbone(self, x: torch.Tensor) -> torch.Tensor:
+        """Causal transformer over tokens ``[B, T, d_model]``, positions 0..T-1."""
+        T = x.shape[1]
+        if T > self.config.context_len:
+            raise ValueError(f"{T} steps exceed context_len {self.config.context_len}")
+        pos = torch.arange(T, device=x.device)
+        # Build the bias in the dtype attention will run in, once: see `attention`.
+        dev = x.device.type
+        dtype = torch.get_autocast_dtype(dev) if torch.is_autocast_enabled(dev) else x.dtype
+        bias = alibi_bias(pos, pos, self.alibi_slopes).to(dtype)
+        for block in self.blocks:
+            x = block(x, bias)
+        return self.ln_f(x)
+
+    def head(self, group: str, h: torch.Tensor) -> torch.Tensor:
+        """Predicted actions ``[B, T, act_dim]`` from backbone outputs."""
+        return self.heads[group](h)
+
+    def forward(
+        self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
+        prev_reward: torch.Tensor, step_num: torch.Tensor,
+    ) -> torch.Tensor:
+        """Predicted a_t for every step: ``obs [B,T,obs_dim]``, ``prev_action [B,T,act_dim]``,
+        ``prev_reward [B,T]``, ``step_num [B,T]`` (step within episode), ``task_idx [B]``."""
+        x = self.embed(group, task_idx, obs, prev_action, prev_reward, step_num)
+        return self.head(group, self.backbone(x))
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of parameters (buffers such as normalization statistics excluded); works on 'meta'."""
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,233 @@
+"""The model: ALiBi attention, causality, group routing, episode-start padding, normalization."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from vintix.errors import UnknownTaskError
+from vintix.model import (
+    GroupSpec,
+    ModelConfig,
+    TaskNorm,
+    Vintix,
+    alibi_bias,
+    alibi_slopes,
+    attention,
+    count_parameters,
+    preset,
+)
+
+GROUPS = [GroupSpec("A", obs_dim=5, act_dim=2), GroupSpec("B", obs_dim=7, act_dim=3)]
+TASKS = [
+    TaskNorm("a0", "A", obs_mean=[0.0] * 5, obs_std=[1.0] * 5, reward_scale=1.0),
+    TaskNorm("a1", "A", obs_mean=[1.0, -2.0, 0.5, 3.0, 0.0], obs_std=[2.0, 0.5, 1.0, 4.0, 0.0], reward_scale=0.1),
+    TaskNorm("b0", "B", obs_mean=[0.0] * 7, obs_std=[1.0] * 7, reward_scale=1.0),
+]
+
+
+def tiny_config(**overrides) -> ModelConfig:
+    fields = dict(n_layers=2, n_heads=2, obs_emb_dim=14, act_emb_dim=14, rew_emb_dim=4, mlp_dim=64,
+                  head_layers=1, context_len=32, dropout=0.0)
+    return ModelConfig(**{**fields, **overrides})
+
+
+def make_model(**overrides) -> Vintix:
+    torch.manual_seed(0)
+    return Vintix(tiny_config(**overrides), GROUPS, TASKS).eval()
+
+
+def make_batch(group: str, task: str, model: Vintix, B: int = 2, T: int = 12, seed: int = 1) -> dict:
+    g = torch.Generator().manual_seed(seed)
+    spec = model.groups[group]
+    step_num = torch.arange(T).remainder(5).expand(B, T).clone()  # episodes of 5 steps
+    return dict(
+        group=group,
+        task_idx=torch.full((B,), model.task_index(task), dtype=torch.long),
+        obs=torch.randn(B, T, spec.obs_dim, generator=g),
+        prev_action=torch.rand(B, T, spec.act_dim, generator=g) * 2 - 1,
+        prev_reward=torch.randn(B, T, generator=g),
+        step_num=step_num,
+    )
+
+
+# --- attention -------------------------------------------------------------------------------
+
+
+def test_alibi_slopes_follow_the_alibi_paper():
+    assert torch.allclose(alibi_slopes(8), torch.tensor([2.0 ** -(i + 1) for i in range(8)]))
+    # Non-power of 2: the 8-head slopes, then every other slope of the 16-head sequence.
+    twelve = alibi_slopes(12)
+    expected = [2.0 ** -(i + 1) for i in range(8)] + [2.0 ** -(0.5 + i) for i in range(4)]
+    assert torch.allclose(twelve, torch.tensor(expected))
+    assert len(set(twelve.tolist())) == 12 and bool((twelve > 0).all())
+
+
+def reference_attention(q, k, v, q_pos, k_pos, slopes):
+    scores = q @ k.transpose(-2, -1) / math.sqrt(q.shape[-1])
+    rel = (q_pos[:, None] - k_pos[None, :]).float()
+    scores = scores - slopes[:, None, None] * rel
+    scores = scores.masked_fill(rel < 0, float("-inf"))
+    return torch.softmax(scores, dim=-1) @ v
+
+
+def test_alibi_attention_matches_explicit_softmax_with_key_window_offset():
+    torch.manual_seed(0)
+    B, H, d = 2, 4, 8
+    q = torch.randn(B, H, 10, d)
+    k, v = torch.randn(B, H, 15, d), torch.randn(B, H, 15, d)
+    slopes = alibi_slopes(H)
+    q_pos, k_pos = torch.arange(100, 110), torch.arange(95, 110)
+
+    out = attention(q, k, v, alibi_bias(q_pos, k_pos, slopes))
+    assert torch.allclose(out, reference_attention(q, k, v, q_pos, k_pos, slopes), atol=1e-5)
+    # Only relative positions matter: what lets a sliding window keep its cache.
+    shifted = attention(q, k, v, alibi_bias(q_pos - 95, k_pos - 95, slopes))
+    assert torch.allclose(out, shifted, atol=1e-6)
+    # Batched positions (one row per env) broadcast over heads.
+    bias_b = alibi_bias(torch.stack([q_pos, q_pos + 7]), torch.stack([k_pos, k_pos + 7]), slopes)
+    assert bias_b.shape == (B, H, 10, 15)
+    assert torch.allclose(attention(q, k, v, bias_b), out, atol=1e-6)
+
+
+# --- the model ---------------------------------------------------------------------------------
+
+
+def test_changing_step_t_never_changes_earlier_outputs():
+    model = make_model()
+    batch = make_batch("A", "a0", model)
+    before = model(**batch)
+    t = 6
+    for key in ("obs", "prev_action", "prev_reward"):
+        batch[key] = batch[key].clone()
+        batch[key][:, t:] += 3.0
+    after = model(**batch)
+    assert torch.allclose(before[:, :t], after[:, :t], atol=1e-6)
+    assert not torch.allclose(before[:, t:], after[:, t:], atol=1e-3)
+
+
+def test_groups_use_their_own_encoders_and_heads():
+    model = make_model()
+    a, b = make_batch("A", "a0", model), make_batch("B", "b0", model)
+    out_a, out_b = model(**a), model(**b)
+    assert out_a.shape == (2, 12, 2) and out_b.shape == (2, 12, 3)
+
+    with torch.no_grad():
+        model.encoders["A"].obs[0].weight.add_(0.5)
+    assert not torch.allclose(model(**a), out_a, atol=1e-4)
+    assert torch.equal(model(**b), out_b)
+    with torch.no_grad():
+        model.heads["A"][-1].weight.add_(0.5)
+    assert torch.equal(model(**b), out_b)
+
+
+def test_mixing_groups_by_concatenating_embeddings_equals_per_group_forward():
+    model = make_model()
+    a, b = make_batch("A", "a1", model), make_batch("B", "b0", model)
+    h = model.backbone(torch.cat([model.embed(**a), model.embed(**b)]))
+    assert torch.allclose(model.head("A", h[:2]), model(**a), atol=1e-5)
+    assert torch.allclose(model.head("B", h[2:]), model(**b), atol=1e-5)
+
+
+def test_previous_action_and_reward_are_ignored_at_episode_starts():
+    model = make_model()
+    batch = make_batch("A", "a0", model)
+    out = model(**batch)
+    starts = batch["step_num"] == 0
+    assert starts.sum() > 2
+    changed = {**batch, "prev_action": batch["prev_action"].clone(), "prev_reward": batch["prev_reward"].clone()}
+    changed["prev_action"][starts] = 5.0
+    changed["prev_reward"][starts] = -7.0
+    assert torch.equal(model(**changed), out)
+    # Away from episode starts they do matter.
+    changed["prev_reward"][~starts] += 1.0
+    assert not torch.allclose(model(**changed), out, atol=1e-4)
+
+
+def test_observations_are_normalized_per_task_with_a_std_floor():
+    model = make_model(std_floor=0.25)
+    a1 = model.task_index("a1")
+    obs = torch.randn(1, 3, 5)
+    obs_n, rew = model.normalize(torch.tensor([a1]), obs, torch.ones(1, 3))
+    mean = torch.tensor([1.0, -2.0, 0.5, 3.0, 0.0])
+    std = torch.tensor([2.0, 0.5, 1.0, 4.0, 0.25])  # the zero std is floored
+    assert torch.allclose(obs_n, (obs - mean) / std)
+    assert torch.allclose(rew, torch.full((1, 3), 0.1))
+
+    # Same raw inputs, different task statistics within a group -> different predictions.
+    batch = make_batch("A", "a0", model)
+    other = {**batch, "task_idx": torch.full((2,), a1)}
+    assert not torch.allclose(model(**batch), model(**other), atol=1e-4)
+
+
+def test_identical_statistics_make_tasks_indistinguishable():
+    # The model has no task identity besides normalization.
+    tasks = [TaskNorm("x", "A", [0.0] * 5, [1.0] * 5), TaskNorm("y", "A", [0.0] * 5, [1.0] * 5)]
+    torch.manual_seed(0)
+    model = Vintix(tiny_config(), GROUPS[:1], tasks).eval()
+    batch = make_batch("A", "x", model)
+    assert torch.equal(model(**batch), model(**{**batch, "task_idx": torch.ones(2, dtype=torch.long)}))
+
+
+def test_mask_reward_makes_outputs_independent_of_rewards():
+    model = make_model(mask_reward=True)
+    assert all(enc.rew is None for enc in model.encoders.values())
+    batch = make_batch("A", "a0", model)
+    out = model(**batch)
+    assert torch.equal(model(**{**batch, "prev_reward": batch["prev_reward"] * -10 + 3}), out)
+
+
+def test_bad_inputs_are_refused_with_clear_errors():
+    model = make_model()
+    batch = make_batch("A", "a0", model)
+    with pytest.raises(ValueError, match="outside group"):
+        model(**{**batch, "task_idx": torch.full((2,), model.task_index("b0"))})
+    with pytest.raises(ValueError, match="obs_dim"):
+        model(**{**batch, "group": "B"})
+    with pytest.raises(ValueError, match="context_len"):
+        model(**make_batch("A", "a0", model, T=33))
+    with pytest.raises(UnknownTaskError):
+        model.task_index("nope")
+    with pytest.raises(ValueError, match="obs_dim"):
+        Vintix(tiny_config(), GROUPS, [TaskNorm("bad", "A", [0.0] * 4, [1.0] * 4)])
+
+
+def test_a_few_optimizer_steps_fit_a_fixed_batch():
+    model = make_model().train()
+    batch = make_batch("A", "a0", model, T=16)
+    target = torch.tanh(batch["obs"][..., :2] + batch["prev_reward"].unsqueeze(-1))
+    opt = torch.optim.AdamW(model.parameters(), lr=3e-3)
+    losses = []
+    for _ in range(40):
+        loss = torch.nn.functional.mse_loss(model(**batch), target)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(loss.item())
+    assert losses[-1] < 0.3 * losses[0]
+
+
+# --- size --------------------------------------------------------------------------------------
+
+# The groups of the paper's 102 tasks: MuJoCo one per env (gymnasium v5 dims), Meta-World,
+# Industrial Benchmark, and Bi-DexHands grouped by (obs, act) dims.
+PAPER_GROUPS = [
+    GroupSpec(name, obs, act)
+    for name, obs, act in [
+        ("Ant", 105, 8), ("HalfCheetah", 17, 6), ("Hopper", 11, 3), ("Humanoid", 348, 17),
+        ("HumanoidStandup", 348, 17), ("InvertedDoublePendulum", 9, 1), ("InvertedPendulum", 4, 1),
+        ("Pusher", 23, 7), ("Reacher", 10, 2), ("Swimmer", 8, 2), ("Walker2d", 17, 6),
+        ("metaworld", 39, 4), ("industrial_benchmark", 6, 3),
+        ("dex_428_52", 428, 52), ("dex_420_52", 420, 52), ("dex_422_52", 422, 52), ("dex_417_52", 417, 52),
+        ("dex_425_52", 425, 52), ("dex_446_52", 446, 52), ("dex_422_40", 422, 40), ("dex_398_40", 398, 40),
+    ]
+]
+
+
+def test_paper_preset_has_the_papers_parameter_count():
+    with torch.device("meta"):
+        model = Vintix(preset("paper"), PAPER_GROUPS, [])
+    assert model.config.d_model == 1024
+    assert abs(count_parameters(model) / 332_100_768 - 1) < 0.05
