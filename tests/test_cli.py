@@ -81,3 +81,16 @@ def test_data_validate_reports_a_truncated_file_by_name(tmp_path):
 def test_data_validate_on_an_empty_folder_says_what_to_point_at(tmp_path):
     result = runner.invoke(app, ["data", "validate", str(tmp_path)])
     assert result.exit_code == 2 and "dataset root" in result.output
+
+
+def test_collect_a_shipped_recipe_then_rerun_collects_nothing(tmp_path):
+    result = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert "wrote 4 histories" in result.output and "collected 4,000 steps" in result.output
+    again = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path)])
+    assert again.exit_code == 0 and "collected 0 steps" in again.output
+
+
+def test_collect_for_a_task_without_demonstrator_says_so():
+    result = runner.invoke(app, ["collect", "--task", "Hopper-v5", "--out", "unused"])
+    assert result.exit_code == 2 and "no demonstrator for mujoco task" in result.output

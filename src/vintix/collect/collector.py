@@ -1,0 +1,152 @@
+"""Collect noise-distilled learning histories into the official dataset layout.
+
+Each history is reproducible from (seed, task, history index) alone: its env seed and its noise
+RNG derive from those, never from which other histories share its process. Histories are collected
+in fixed batches (indices 0..k-1, k..2k-1, ...) whose envs step in lockstep so the demonstrator
+runs batched; a batch is re-collected whole unless all its files exist. Files appear only when
+complete, so re-running an interrupted collection finishes exactly what is missing, and gives the
+same bytes as an uninterrupted run even if the demonstrator's batched numerics depend on the batch.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from vintix.collect.noise import NoiseSchedule, mix_action
+from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
+from vintix.demonstrators import Demonstrator, load_demonstrator
+from vintix.tasks import TaskSpec, get_task, make_env
+
+
+@dataclass(frozen=True)
+class CollectionPlan:
+    """What to collect for one task."""
+
+    task: str
+    histories: int
+    """Number of learning histories."""
+    steps: int
+    """Steps per history (N of the noise schedule)."""
+    schedule: NoiseSchedule = NoiseSchedule()
+    seed: int = 0
+    """Base seed; history i of task t is seeded from (seed, t, i)."""
+    envs_per_batch: int = 4
+    """Histories stepped in lockstep in one process (one batched demonstrator call per step)."""
+
+
+@dataclass(frozen=True)
+class HistorySummary:
+    """What a finished history looks like, for the end-of-run report."""
+
+    path: Path
+    steps: int
+    episode_returns: np.ndarray
+    collected_now: bool
+    """False when the file was already there from an earlier (interrupted) run."""
+
+    def mean_return(self, first: bool, fraction: float = 0.1) -> float:
+        """Mean return of the first (or last) `fraction` of the history's episodes."""
+        n = max(1, int(len(self.episode_returns) * fraction))
+        chosen = self.episode_returns[:n] if first else self.episode_returns[-n:]
+        return float(np.mean(chosen))
+
+
+def history_path(root: Path, spec: TaskSpec, index: int) -> Path:
+    return task_directory(root, spec.domain, spec.name) / f"history-{index:04d}.h5"
+
+
+def history_seeds(task: str, index: int, seed: int) -> tuple[int, np.random.Generator]:
+    """(env seed, noise RNG) of one history; crc32 because Python's str hash changes per process."""
+    env_sequence, noise_sequence = np.random.SeedSequence([seed, zlib.crc32(task.encode()), index]).spawn(2)
+    return int(env_sequence.generate_state(1)[0]), np.random.default_rng(noise_sequence)
+
+
+def batches(plan: CollectionPlan) -> list[list[int]]:
+    k = plan.envs_per_batch
+    return [list(range(start, min(start + k, plan.histories))) for start in range(0, plan.histories, k)]
+
+
+def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
+                  demonstrator: Demonstrator | None = None, progress_position: int = 0) -> list[Path]:
+    """Collect histories `indices` of `plan.task` together, writing one file each."""
+    spec = get_task(plan.task)
+    demonstrator = demonstrator or load_demonstrator(spec.name)
+    seeds = [history_seeds(spec.name, i, plan.seed) for i in indices]
+    envs = [make_env(spec.name, seed=env_seed) for env_seed, _ in seeds]
+    low, high = envs[0].action_space.low, envs[0].action_space.high
+    epsilons = plan.schedule.epsilon(np.arange(plan.steps), plan.steps)
+    writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim) for i in indices]
+    try:
+        observations = np.stack([env.reset()[0] for env in envs])
+        step_nums = np.zeros(len(envs), dtype=np.int64)
+        label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
+        for t in tqdm(range(plan.steps), desc=label, position=progress_position, leave=False, mininterval=1.0):
+            expert = demonstrator.act(observations, envs)
+            for i, (env, (_, rng), writer) in enumerate(zip(envs, seeds, writers)):
+                # float32 before stepping, so the action stored is exactly the action executed.
+                action = mix_action(expert[i], float(epsilons[t]), rng, low, high).astype(np.float32)
+                next_obs, reward, terminated, truncated, _ = env.step(action)
+                writer.append(observations[i], action, reward, step_nums[i])
+                if terminated or truncated:
+                    next_obs, _ = env.reset()
+                    step_nums[i] = 0
+                else:
+                    step_nums[i] += 1
+                observations[i] = next_obs
+        return [writer.close() for writer in writers]
+    except BaseException:
+        for writer in writers:
+            writer.abort()
+        raise
+    finally:
+        for env in envs:
+            env.close()
+
+
+def _collect_batch_in_worker(args: tuple[CollectionPlan, list[int], Path, Demonstrator | None, int]) -> list[Path]:
+    import torch
+
+    torch.set_num_threads(1)  # one process per core: threads inside would only contend
+    plan, indices, root, demonstrator, position = args
+    return collect_batch(plan, indices, root, demonstrator, progress_position=position)
+
+
+def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, workers: int = 1,
+            demonstrator: Demonstrator | None = None) -> list[HistorySummary]:
+    """Collect every missing history of `plans` under `root`, spreading batches of all tasks over
+    `workers` processes; returns a summary of every history of the plans. `demonstrator` (one task
+    only) defaults to the project's demonstrator of each task."""
+    plans = [plans] if isinstance(plans, CollectionPlan) else list(plans)
+    root = Path(root)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    jobs = []
+    for plan in plans:
+        spec = get_task(plan.task)
+        if plan.histories < 1 or plan.steps < 1:
+            raise ValueError(f"{plan.task}: need histories and steps >= 1, got {plan.histories} and {plan.steps}")
+        write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
+                            domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale)
+        jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)
+                 if not all(history_path(root, spec, i).exists() for i in indices)]
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(_collect_batch_in_worker, [(*job, n % workers) for n, job in enumerate(jobs)]))
+    else:
+        for job in jobs:
+            collect_batch(*job)
+    fresh = {history_path(root, get_task(plan.task), i) for plan, indices, *_ in jobs for i in indices}
+    paths = [history_path(root, get_task(plan.task), i) for plan in plans for i in range(plan.histories)]
+    return [summarize_history(path, collected_now=path in fresh) for path in paths]
+
+
+def summarize_history(path: Path, collected_now: bool) -> HistorySummary:
+    with LearningHistory(path) as history:
+        return HistorySummary(path, history.num_steps, history.episode_returns(), collected_now)

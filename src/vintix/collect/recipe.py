@@ -1,0 +1,64 @@
+"""Collection recipes: a YAML file naming tasks and their per-task collection settings.
+
+    defaults:            # any CollectionPlan field except `task`
+      histories: 4
+      steps: 10000
+      curvature: 1.0
+      noise_free_fraction: 0.05
+    tasks:
+      reach-v3: {}
+      door-open-v3: {curvature: 2.0}
+      metaworld: {}      # a domain or split name expands to all its tasks
+
+Shipped recipes (`vintix collect --recipe NAME`): see `src/vintix/collect/recipes/`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from vintix.collect.collector import CollectionPlan
+from vintix.collect.noise import NoiseSchedule
+from vintix.tasks import resolve_tasks
+
+SCHEDULE_KEYS = {"curvature", "noise_free_fraction"}
+PLAN_KEYS = {f.name for f in dataclasses.fields(CollectionPlan)} - {"task", "schedule"}
+
+
+def recipe_path(name_or_path: str | Path) -> Path:
+    """A recipe file, or the name of one the package ships ('tiny', 'metaworld-cpu', ...)."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    shipped = resources.files("vintix.collect").joinpath("recipes", f"{name_or_path}.yaml")
+    if shipped.is_file():
+        return Path(str(shipped))
+    names = sorted(p.name.removesuffix(".yaml") for p in resources.files("vintix.collect").joinpath("recipes").iterdir())
+    raise FileNotFoundError(f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {names}")
+
+
+def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
+    unknown = set(settings) - PLAN_KEYS - SCHEDULE_KEYS
+    if unknown:
+        raise ValueError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(PLAN_KEYS | SCHEDULE_KEYS)}")
+    schedule = NoiseSchedule(**{k: float(v) for k, v in settings.items() if k in SCHEDULE_KEYS})
+    return CollectionPlan(task=task, schedule=schedule, **{k: int(v) for k, v in settings.items() if k in PLAN_KEYS})
+
+
+def load_recipe(name_or_path: str | Path) -> list[CollectionPlan]:
+    """The collection plans of a recipe, one per task, task settings overriding the defaults."""
+    path = recipe_path(name_or_path)
+    recipe = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(recipe, dict) or not isinstance(recipe.get("tasks"), dict) or not recipe["tasks"]:
+        raise ValueError(f"{path}: a recipe needs a non-empty 'tasks:' mapping (and optionally 'defaults:')")
+    defaults = recipe.get("defaults") or {}
+    plans: dict[str, CollectionPlan] = {}
+    for selector, settings in recipe["tasks"].items():
+        for spec in resolve_tasks([selector]):
+            plans[spec.name] = _plan(spec.name, {**defaults, **(settings or {})}, f"{path}: {selector}")
+    return list(plans.values())

@@ -1,0 +1,68 @@
+"""Collecting noise-distilled learning histories on a real simulator with a real demonstrator."""
+
+import filecmp
+
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+
+from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.data import LearningHistory, validate_dataset
+from vintix.demonstrators import ScriptedMetaWorldDemonstrator
+
+PLAN = CollectionPlan("reach-v3", histories=3, steps=300, envs_per_batch=2)
+
+
+class InterruptedAfter:
+    """The real demonstrator, until the process is interrupted (Ctrl-C) after `calls` steps."""
+
+    def __init__(self, task: str, calls: int) -> None:
+        self.inner, self.calls = ScriptedMetaWorldDemonstrator(task), calls
+
+    def act(self, observations, envs):
+        self.calls -= 1
+        if self.calls < 0:
+            raise KeyboardInterrupt
+        return self.inner.act(observations, envs)
+
+
+def test_history_rises_from_random_to_expert(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=3000, schedule=NoiseSchedule(noise_free_fraction=0.1))
+    [summary] = collect(plan, tmp_path)
+    returns = summary.episode_returns
+    assert len(returns) == 30
+    assert spearmanr(np.arange(len(returns)), returns).statistic >= 0.8
+    assert summary.mean_return(first=False) > 3 * summary.mean_return(first=True)
+
+
+def test_histories_follow_the_format_and_the_episode_structure(tmp_path):
+    summaries = collect(PLAN, tmp_path)
+    assert validate_dataset(tmp_path) == []
+    for summary in summaries:
+        with LearningHistory(summary.path) as history:
+            assert history.num_steps == 300
+            np.testing.assert_array_equal(history.episode_starts, [0, 100, 200])  # 100-step episodes
+            rows = history.read(0, 300)
+            assert np.all(np.abs(rows["action"]) <= 1)
+
+
+def test_same_seed_same_bytes_other_seed_other_data(tmp_path):
+    collect(PLAN, tmp_path / "a")
+    collect(PLAN, tmp_path / "b")
+    collect(CollectionPlan("reach-v3", histories=1, steps=300, seed=1), tmp_path / "c")
+    name = "metaworld/reach-v3/history-0000.h5"
+    assert filecmp.cmp(tmp_path / "a" / name, tmp_path / "b" / name, shallow=False)
+    with LearningHistory(tmp_path / "a" / name) as a, LearningHistory(tmp_path / "c" / name) as c:
+        assert not np.array_equal(a.read(0, 300)["action"], c.read(0, 300)["action"])
+
+
+def test_interrupted_collection_resumes_to_identical_files(tmp_path):
+    collect(PLAN, tmp_path / "straight")
+    with pytest.raises(KeyboardInterrupt):
+        # The first batch (histories 0, 1) completes; the second (history 2) dies halfway.
+        collect(PLAN, tmp_path / "resumed", demonstrator=InterruptedAfter("reach-v3", calls=300 + 150))
+    task_dir = tmp_path / "resumed" / "metaworld" / "reach-v3"
+    assert sorted(p.name for p in task_dir.iterdir()) == ["history-0000.h5", "history-0001.h5", "reach-v3.json"]
+    collect(PLAN, tmp_path / "resumed")
+    for name in ["history-0000.h5", "history-0001.h5", "history-0002.h5", "reach-v3.json"]:
+        assert filecmp.cmp(tmp_path / "straight/metaworld/reach-v3" / name, task_dir / name, shallow=False), name

@@ -1,0 +1,31 @@
+"""Collection recipes: YAML files naming tasks and their settings."""
+
+import pytest
+
+from vintix.collect.recipe import load_recipe
+
+
+def test_shipped_recipes_load():
+    tiny = {plan.task: plan for plan in load_recipe("tiny")}
+    assert tiny["button-press-v3"].schedule.curvature == 2.0 and tiny["reach-v3"].schedule.curvature == 1.0
+    suite = load_recipe("metaworld-cpu")
+    assert len(suite) == 45 and "door-lock-v3" not in {p.task for p in suite}  # test tasks stay out
+
+
+def test_domains_expand_and_task_settings_override_defaults(tmp_path):
+    path = tmp_path / "r.yaml"
+    path.write_text("defaults: {histories: 3, steps: 500}\ntasks:\n  industrial_benchmark: {}\n"
+                    "  industrial-benchmark-0-v1: {steps: 100, noise_free_fraction: 0.2}\n")
+    plans = {p.task: p for p in load_recipe(path)}
+    assert len(plans) == 21 and plans["industrial-benchmark-5-v1"].steps == 500
+    assert plans["industrial-benchmark-0-v1"].steps == 100
+    assert plans["industrial-benchmark-0-v1"].schedule.noise_free_fraction == 0.2
+
+
+def test_unknown_setting_and_unknown_recipe_are_clear_errors(tmp_path):
+    path = tmp_path / "r.yaml"
+    path.write_text("tasks:\n  reach-v3: {stepz: 10}\n")
+    with pytest.raises(ValueError, match="unknown setting.*stepz"):
+        load_recipe(path)
+    with pytest.raises(FileNotFoundError, match="shipped: .*tiny"):
+        load_recipe("no-such-recipe")
