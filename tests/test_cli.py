@@ -91,6 +91,7 @@ def test_collect_a_shipped_recipe_then_rerun_collects_nothing(tmp_path):
     assert again.exit_code == 0 and "collected 0 steps" in again.output
 
 
-def test_collect_for_a_task_without_demonstrator_says_so():
-    result = runner.invoke(app, ["collect", "--task", "Hopper-v5", "--out", "unused"])
+def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_path):
+    result = runner.invoke(app, ["collect", "--task", "Hopper-v5", "--out", str(tmp_path / "data")])
     assert result.exit_code == 2 and "no demonstrator for mujoco task" in result.output
+    assert not (tmp_path / "data").exists()

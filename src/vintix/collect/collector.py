@@ -132,6 +132,8 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
         spec = get_task(plan.task)
         if plan.histories < 1 or plan.steps < 1:
             raise ValueError(f"{plan.task}: need histories and steps >= 1, got {plan.histories} and {plan.steps}")
+        if demonstrator is None:
+            load_demonstrator(spec.name)  # fail before writing anything for a task without one
         write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
                             domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale)
         jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)
