@@ -186,5 +186,22 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
     console.print(table)
 
 
+@data_app.command("plot")
+def data_plot(
+    root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
+    out: Annotated[Path, typer.Option(help="folder for the PNG figures")] = Path("figs"),
+    bins: Annotated[int, typer.Option(help="bins along the history")] = 50,
+) -> None:
+    """Paper Figure 3: IQM of normalized episode return along the histories, per task and per domain."""
+    from vintix.data.plot import plot_dataset
+    from vintix.errors import DatasetError
+
+    try:
+        written = plot_dataset(root, out, bins)
+    except DatasetError as error:
+        raise _fail(error)
+    console.print(f"wrote {len(written)} figures under {out} (normalized by the paper's random/expert scores)")
+
+
 if __name__ == "__main__":
     app()
