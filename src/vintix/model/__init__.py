@@ -1,5 +1,6 @@
 """Grouped encoders -> causal ALiBi transformer -> grouped action heads (see `model.py`)."""
 
+from vintix.model.checkpoint import CheckpointError, load_pretrained, read_metadata, save_pretrained
 from vintix.model.model import (
     PRESETS,
     GroupSpec,
@@ -14,6 +15,10 @@ from vintix.model.model import (
 )
 
 __all__ = [
+    "CheckpointError",
+    "load_pretrained",
+    "read_metadata",
+    "save_pretrained",
     "PRESETS",
     "GroupSpec",
     "ModelConfig",

@@ -1,0 +1,110 @@
+"""Model checkpoints: ``model.safetensors`` (weights) + ``model.json`` (config, groups, task norms).
+
+A checkpoint directory is self-contained: it loads on a machine that has neither the dataset nor
+the training code's state, which is what inference and evaluation need. Weights are never pickled.
+Both files are written atomically; ``model.json`` is written last, so a directory with a
+``model.json`` always has the weights that go with it. ``extra`` carries whatever the writer wants
+to keep beside the model (training step, dataset fingerprint, ...) and comes back unchanged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors.torch import load_file, save_file
+
+from vintix.atomic import atomic_path, atomic_write_text
+from vintix.errors import VintixError
+from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
+
+WEIGHTS_FILE = "model.safetensors"
+CONFIG_FILE = "model.json"
+FORMAT_VERSION = 1
+
+
+class CheckpointError(VintixError, ValueError):
+    """A checkpoint directory that is missing, incomplete, or made for another model."""
+
+
+def model_metadata(model: Vintix, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Everything besides the weights that rebuilds `model`, as JSON-ready data."""
+    return {
+        "format_version": FORMAT_VERSION,
+        "config": dataclasses.asdict(model.config),
+        "groups": [dataclasses.asdict(g) for g in model.groups.values()],
+        "task_norms": [
+            {"task": t.task, "group": t.group, "obs_mean": [float(x) for x in t.obs_mean],
+             "obs_std": [float(x) for x in t.obs_std], "reward_scale": float(t.reward_scale)}
+            for t in model.task_norms
+        ],
+        "extra": extra or {},
+    }
+
+
+def save_pretrained(model: Vintix, directory: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> Path:
+    """Write `model` to `directory` (created if needed); returns the directory."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    # safetensors refuses tensors that share memory or are not contiguous; a state_dict has neither.
+    weights = {name: tensor.detach().cpu().contiguous() for name, tensor in model.state_dict().items()}
+    with atomic_path(directory / WEIGHTS_FILE) as temporary:
+        save_file(weights, str(temporary), metadata={"format": "pt"})
+    atomic_write_text(directory / CONFIG_FILE, json.dumps(model_metadata(model, extra), indent=1) + "\n")
+    return directory
+
+
+def read_metadata(directory: str | os.PathLike[str]) -> dict[str, Any]:
+    """The JSON half of a checkpoint, checked for the keys `load_pretrained` needs."""
+    path = Path(directory) / CONFIG_FILE
+    if not path.is_file():
+        raise CheckpointError(f"{directory}: no {CONFIG_FILE}; is this a checkpoint directory written by vintix?")
+    try:
+        meta = json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise CheckpointError(f"{path}: not valid JSON ({error}); the checkpoint is damaged, re-save it") from error
+    missing = [key for key in ("format_version", "config", "groups", "task_norms") if key not in meta]
+    if missing:
+        raise CheckpointError(f"{path}: missing keys {missing}; the checkpoint is damaged or not vintix's")
+    if meta["format_version"] != FORMAT_VERSION:
+        raise CheckpointError(
+            f"{path}: checkpoint format {meta['format_version']}, this vintix reads format {FORMAT_VERSION}"
+        )
+    return meta
+
+
+def build_model(meta: dict[str, Any]) -> Vintix:
+    """An untrained model with the architecture, groups and normalization a checkpoint describes."""
+    known = {f.name for f in dataclasses.fields(ModelConfig)}
+    unknown = sorted(set(meta["config"]) - known)
+    if unknown:
+        raise CheckpointError(f"checkpoint config has fields {unknown} that this vintix's ModelConfig lacks")
+    config = ModelConfig(**meta["config"])
+    return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
+
+
+def load_pretrained(directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Vintix:
+    """The model saved in `directory`, in eval mode, on `device`."""
+    directory = Path(directory)
+    model = build_model(read_metadata(directory))
+    weights_path = directory / WEIGHTS_FILE
+    if not weights_path.is_file():
+        raise CheckpointError(f"{directory}: {CONFIG_FILE} is there but {WEIGHTS_FILE} is not; re-save it")
+    try:
+        weights = load_file(str(weights_path))
+    except Exception as error:  # safetensors raises its own SafetensorError on truncated files
+        raise CheckpointError(f"{weights_path}: unreadable ({error}); the file is truncated or damaged") from error
+    expected = model.state_dict()
+    missing, unexpected = sorted(set(expected) - set(weights)), sorted(set(weights) - set(expected))
+    wrong_shape = [k for k in set(expected) & set(weights) if expected[k].shape != weights[k].shape]
+    if missing or unexpected or wrong_shape:
+        raise CheckpointError(
+            f"{weights_path} does not fit the model in {CONFIG_FILE}: missing {missing[:5]}, unexpected "
+            f"{unexpected[:5]}, wrong shape {sorted(wrong_shape)[:5]}"
+        )
+    model.load_state_dict(weights)
+    return model.to(device).eval()

@@ -1,0 +1,54 @@
+"""Model checkpoints: safetensors + JSON round trip, and clear errors for damaged or foreign ones."""
+
+import json
+
+import pytest
+import torch
+
+from test_model import make_batch, make_model
+from vintix.model import CheckpointError, load_pretrained, read_metadata, save_pretrained
+
+
+def test_save_then_load_gives_identical_outputs_and_keeps_extra(tmp_path):
+    model = make_model()
+    save_pretrained(model, tmp_path / "ckpt", extra={"step": 7})
+    loaded = load_pretrained(tmp_path / "ckpt")
+    for group, task in (("A", "a1"), ("B", "b0")):
+        batch = make_batch(group, task, model)
+        assert torch.equal(model(**batch), loaded(**batch))
+    assert read_metadata(tmp_path / "ckpt")["extra"] == {"step": 7}
+    assert sorted(p.name for p in (tmp_path / "ckpt").iterdir()) == ["model.json", "model.safetensors"]
+
+
+def test_missing_directory_or_weights_is_a_clear_error(tmp_path):
+    with pytest.raises(CheckpointError, match="no model.json"):
+        load_pretrained(tmp_path)
+    save_pretrained(make_model(), tmp_path)
+    (tmp_path / "model.safetensors").unlink()
+    with pytest.raises(CheckpointError, match="model.safetensors is not"):
+        load_pretrained(tmp_path)
+
+
+def test_truncated_weights_are_reported(tmp_path):
+    save_pretrained(make_model(), tmp_path)
+    weights = tmp_path / "model.safetensors"
+    weights.write_bytes(weights.read_bytes()[:100])
+    with pytest.raises(CheckpointError, match="truncated or damaged"):
+        load_pretrained(tmp_path)
+
+
+def test_weights_of_another_config_are_refused(tmp_path):
+    save_pretrained(make_model(), tmp_path / "small")
+    save_pretrained(make_model(mlp_dim=32), tmp_path / "other")
+    (tmp_path / "other" / "model.safetensors").replace(tmp_path / "small" / "model.safetensors")
+    with pytest.raises(CheckpointError, match="wrong shape"):
+        load_pretrained(tmp_path / "small")
+
+
+def test_unknown_config_field_is_refused(tmp_path):
+    save_pretrained(make_model(), tmp_path)
+    meta = json.loads((tmp_path / "model.json").read_text())
+    meta["config"]["rotary"] = True
+    (tmp_path / "model.json").write_text(json.dumps(meta))
+    with pytest.raises(CheckpointError, match="rotary"):
+        load_pretrained(tmp_path)
