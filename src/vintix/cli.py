@@ -20,6 +20,8 @@ from vintix.tasks import get_task, list_tasks, resolve_tasks
 app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True)
 data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one).", no_args_is_help=True)
 app.add_typer(data_app, name="data")
+bench_app = typer.Typer(help="Speed benchmarks (not tests): training and inference throughput.", no_args_is_help=True)
+app.add_typer(bench_app, name="bench")
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
 console = Console(width=None if sys.stdout.isatty() else 160)
 
