@@ -92,6 +92,6 @@ def test_collect_a_shipped_recipe_then_rerun_collects_nothing(tmp_path):
 
 
 def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_path):
-    result = runner.invoke(app, ["collect", "--task", "Hopper-v5", "--out", str(tmp_path / "data")])
-    assert result.exit_code == 2 and "no demonstrator for mujoco task" in result.output
+    result = runner.invoke(app, ["collect", "--task", "Humanoid-v5", "--out", str(tmp_path / "data")])
+    assert result.exit_code == 2 and "no trained demonstrator for 'Humanoid-v5'" in result.output
     assert not (tmp_path / "data").exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -20,6 +21,9 @@ from vintix.tasks import get_task, list_tasks, resolve_tasks
 app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True)
 data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one).", no_args_is_help=True)
 app.add_typer(data_app, name="data")
+demonstrator_app = typer.Typer(help="Train and score the experts that learning histories are distilled from.",
+                               no_args_is_help=True)
+app.add_typer(demonstrator_app, name="demonstrator")
 bench_app = typer.Typer(help="Speed benchmarks (not tests): training and inference throughput.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
@@ -138,6 +142,87 @@ def collect(
     speed = f", {new / seconds:,.0f} steps/s" if new else ""
     console.print(f"wrote {len(summaries)} histories ({sum(s.steps for s in summaries):,} steps) under {out}; "
                   f"this run collected {new:,} steps in {seconds:.1f} s{speed}")
+
+
+@demonstrator_app.command("train")
+def demonstrator_train(
+    task: Annotated[str, typer.Option(help="a task of the group to train for (one policy per encoder group)")],
+    timesteps: Annotated[Optional[int], typer.Option(help="env steps (default: the group's recipe)")] = None,
+    seed: int = 0,
+    out: Annotated[Optional[Path], typer.Option(help="folder for the weights (default: the package's shipped ones)")] = None,
+) -> None:
+    """Train a MuJoCo or Industrial Benchmark demonstrator with Stable-Baselines3 and save its weights."""
+    from vintix.demonstrators.training import recipe_for, train_demonstrator
+
+    try:
+        recipe = recipe_for(task)
+        console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}")
+        path = train_demonstrator(task, timesteps, seed, out)
+    except VintixError as error:
+        raise _fail(error)
+    console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task {task}`")
+
+
+@demonstrator_app.command("eval")
+def demonstrator_eval(
+    task: Annotated[list[str], typer.Option(help="task, domain or split; repeat for several")],
+    episodes: Annotated[int, typer.Option(help="episodes per policy, each in its own env (seed + i)")] = 20,
+    seed: int = 0,
+    table: Annotated[Optional[Path], typer.Option(help="score table to update (default: the package's scores.csv)")] = None,
+) -> None:
+    """Score demonstrators and a uniform-random policy; record both in the score table."""
+    from vintix.demonstrators import load_demonstrator
+    from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores
+
+    try:
+        specs = [t for t in resolve_tasks(task) if t.domain != "bidexhands"]
+        demonstrators = [load_demonstrator(spec.name) for spec in specs]
+    except VintixError as error:
+        raise _fail(error)
+    command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"
+    rows = []
+    for spec, demonstrator in track(list(zip(specs, demonstrators)), description="scoring"):
+        line = command.format(task=spec.name)
+        rows += [measure(spec.name, "demonstrator", demonstrator, episodes, seed, line),
+                 measure(spec.name, "random", UniformRandomPolicy(), episodes, seed, line)]
+    result = Table(title=f"{episodes} episodes per policy, seed {seed}; normalized by the paper's random/expert")
+    for column in ("task", "demonstrator", "random", "paper expert", "paper random", "normalized"):
+        result.add_column(column, justify="left" if column == "task" else "right")
+    for spec, (ours, random) in zip(specs, zip(rows[::2], rows[1::2])):
+        normalized = (ours.mean - spec.paper_random.mean) / (spec.paper_expert.mean - spec.paper_random.mean)
+        result.add_row(spec.name, _score(ours.mean, ours.std), _score(random.mean, random.std),
+                       _score(spec.paper_expert.mean, spec.paper_expert.std),
+                       _score(spec.paper_random.mean, spec.paper_random.std), f"{normalized:.2f}")
+    console.print(result)
+    console.print(f"wrote {len(rows)} scores to {record_scores(rows, table)}")
+
+
+@demonstrator_app.command("list")
+def demonstrator_list() -> None:
+    """Which tasks have a demonstrator, how it was made, and its recorded score."""
+    from vintix.demonstrators.scores import read_scores
+    from vintix.demonstrators.trained import weights_paths
+
+    scores = {(s.task, s.policy): s for s in read_scores()}
+    result = Table(title="demonstrators (score: ours, recorded by `vintix demonstrator eval`)")
+    for column in ("task", "kind", "training", "score", "paper expert"):
+        result.add_column(column, justify="left" if column in ("task", "kind", "training") else "right")
+    for spec in list_tasks():
+        if spec.domain == "bidexhands":
+            continue
+        kind, training = "scripted (metaworld.policies)", ""
+        if spec.domain != "metaworld":
+            _, meta_path = weights_paths(spec.group)
+            if meta_path.is_file():
+                meta = json.loads(meta_path.read_text())
+                kind = f"{meta['algorithm']} (shipped)"
+                training = f"{meta['timesteps']:,} steps, {meta['train_seconds'] / 60:.0f} min"
+            else:
+                kind = "none: `vintix demonstrator train`"
+        ours = scores.get((spec.name, "demonstrator"))
+        result.add_row(spec.name, kind, training, "—" if ours is None else _score(ours.mean, ours.std),
+                       _score(spec.paper_expert.mean, spec.paper_expert.std))
+    console.print(result)
 
 
 def registry_dims(task_name: str) -> tuple[int, int] | None:

@@ -8,6 +8,7 @@ from typing import Protocol
 import gymnasium as gym
 import numpy as np
 
+from vintix.errors import VintixError
 from vintix.tasks import get_task
 
 
@@ -20,13 +21,15 @@ class Demonstrator(Protocol):
 
 
 def load_demonstrator(task: str) -> Demonstrator:
-    """The project's demonstrator for `task`; a clear error for tasks that have none yet."""
+    """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
+    shipped for the task's group; a clear error for tasks that have none."""
     spec = get_task(task)
     if spec.domain == "metaworld":
         from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
 
         return ScriptedMetaWorldDemonstrator(spec.name)
-    raise NotImplementedError(
-        f"no demonstrator for {spec.domain} task {spec.name!r} yet: only Meta-World's scripted experts ship "
-        "so far (trained MuJoCo and Industrial Benchmark demonstrators are still to come)."
-    )
+    if spec.domain == "bidexhands":
+        raise VintixError(f"no demonstrator for Bi-DexHands task {spec.name!r}: its envs need IsaacGym")
+    from vintix.demonstrators.trained import TrainedDemonstrator
+
+    return TrainedDemonstrator(spec)

@@ -1,0 +1,105 @@
+"""Trained demonstrators (MuJoCo, Industrial Benchmark): Stable-Baselines3 policies shipped as
+weights only.
+
+A demonstrator is stored per encoder group as ``weights/<group>.safetensors`` (the tensors that
+`predict` uses, plus the observation-normalization statistics when the policy was trained behind
+`VecNormalize`) and ``weights/<group>.json`` (algorithm, policy architecture, how it was trained and
+with which command). Nothing is pickled: the SB3 policy is rebuilt from the JSON and the env's spaces,
+then the tensors are loaded into it. One file per group rather than per task because one Industrial
+Benchmark policy serves all 21 setpoints (the setpoint is part of its observation).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from safetensors.torch import load_file, save_file
+from stable_baselines3 import PPO, SAC, TD3
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.vec_env import VecNormalize
+
+from vintix.atomic import atomic_path, atomic_write_text
+from vintix.errors import VintixError
+from vintix.tasks import TaskSpec, make_env
+
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"PPO": PPO, "SAC": SAC, "TD3": TD3}
+OBS_MEAN, OBS_VAR = "obs_rms.mean", "obs_rms.var"
+
+
+def shipped_weights_dir() -> Path:
+    """Where the package keeps its trained demonstrators."""
+    return Path(str(resources.files("vintix.demonstrators").joinpath("weights")))
+
+
+def weights_paths(group: str, directory: Path | None = None) -> tuple[Path, Path]:
+    """(tensors, metadata) files of a group's demonstrator."""
+    directory = directory or shipped_weights_dir()
+    return directory / f"{group}.safetensors", directory / f"{group}.json"
+
+
+def _inference_module(policy: BasePolicy) -> torch.nn.Module:
+    # Off-policy algorithms act through the actor alone; their critics are training-only weight.
+    actor = getattr(policy, "actor", None)
+    return actor if isinstance(actor, torch.nn.Module) else policy
+
+
+def save_trained_policy(model: BaseAlgorithm, vec_normalize: VecNormalize | None, group: str,
+                        directory: Path, info: dict[str, Any]) -> Path:
+    """Write the acting weights of `model` (and its obs statistics) as the demonstrator of `group`."""
+    tensors_path, meta_path = weights_paths(group, directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    tensors = {k: v.detach().cpu().contiguous() for k, v in _inference_module(model.policy).state_dict().items()}
+    meta: dict[str, Any] = {"algorithm": type(model).__name__, "policy_kwargs": model.policy_kwargs, **info}
+    if vec_normalize is not None:
+        tensors[OBS_MEAN] = torch.as_tensor(vec_normalize.obs_rms.mean, dtype=torch.float64)
+        tensors[OBS_VAR] = torch.as_tensor(vec_normalize.obs_rms.var, dtype=torch.float64)
+        meta["obs_normalization"] = {"clip": vec_normalize.clip_obs, "epsilon": vec_normalize.epsilon}
+    with atomic_path(tensors_path) as temporary:
+        save_file(tensors, str(temporary))
+    atomic_write_text(meta_path, json.dumps(meta, indent=2) + "\n")
+    return tensors_path
+
+
+class TrainedDemonstrator:
+    """A trained SB3 policy acting deterministically on a batch of observations."""
+
+    def __init__(self, spec: TaskSpec, directory: Path | None = None) -> None:
+        tensors_path, meta_path = weights_paths(spec.group, directory)
+        if not tensors_path.is_file() or not meta_path.is_file():
+            raise VintixError(
+                f"no trained demonstrator for {spec.name!r} (group {spec.group!r}) in {tensors_path.parent}: "
+                f"train one with `vintix demonstrator train --task {spec.name}` (see demonstrators/training.py "
+                "for its budget), or collect a task that has one (`vintix demonstrator list`)."
+            )
+        self.metadata = json.loads(meta_path.read_text())
+        tensors = load_file(str(tensors_path))
+        env = make_env(spec.name)
+        observation_space, action_space = env.observation_space, env.action_space
+        env.close()
+        policy_class = ALGORITHMS[self.metadata["algorithm"]].policy_aliases["MlpPolicy"]
+        self.policy: BasePolicy = policy_class(
+            observation_space, action_space, lr_schedule=lambda _: 0.0, **self.metadata["policy_kwargs"]
+        )
+        self.obs_mean, self.obs_var = tensors.pop(OBS_MEAN, None), tensors.pop(OBS_VAR, None)
+        _inference_module(self.policy).load_state_dict(tensors)
+        self.policy.set_training_mode(False)
+
+    def normalize(self, observations: np.ndarray) -> np.ndarray:
+        """What `VecNormalize.normalize_obs` did during training, from the saved statistics."""
+        if self.obs_mean is None:
+            return observations
+        settings = self.metadata["obs_normalization"]
+        scaled = (observations - self.obs_mean.numpy()) / np.sqrt(self.obs_var.numpy() + settings["epsilon"])
+        return np.clip(scaled, -settings["clip"], settings["clip"]).astype(np.float32)
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        actions, _ = self.policy.predict(self.normalize(np.asarray(observations)), deterministic=True)
+        return actions
