@@ -3,6 +3,7 @@
 import pytest
 
 from vintix.collect.recipe import load_recipe
+from vintix.tasks import get_task
 
 
 def test_shipped_recipes_load():
@@ -10,6 +11,10 @@ def test_shipped_recipes_load():
     assert tiny["button-press-v3"].schedule.curvature == 2.0 and tiny["reach-v3"].schedule.curvature == 1.0
     suite = load_recipe("metaworld-cpu")
     assert len(suite) == 45 and "door-lock-v3" not in {p.task for p in suite}  # test tasks stay out
+    paper = {plan.task: plan for plan in load_recipe("paper")}
+    assert len(paper) == 72 and {get_task(t).split for t in paper} == {"train"}
+    assert (paper["Humanoid-v5"].histories, paper["Humanoid-v5"].steps) == (15, 1_000_000)  # Appendix G
+    assert sum(p.histories * p.steps for p in paper.values()) == 191_500_000
 
 
 def test_domains_expand_and_task_settings_override_defaults(tmp_path):
