@@ -1,0 +1,6 @@
+"""Stage: the in-context agent, a batched stateful policy with a sliding-window KV cache."""
+
+from vintix.agent.agent import Agent, AgentInputError, AgentTask, resolve_task
+from vintix.agent.cache import KVCache, banded_forward, cached_backbone
+
+__all__ = ["Agent", "AgentInputError", "AgentTask", "KVCache", "banded_forward", "cached_backbone", "resolve_task"]

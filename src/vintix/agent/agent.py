@@ -1,0 +1,298 @@
+"""The in-context agent: a Vintix model stepping a batch of envs, one token per env step.
+
+Cold start (paper §2.3.3): the context starts empty; each step appends the token
+``[o_t | a_{t-1} | r_{t-1}]`` of every env and reads off ``a_t``. The previous action is the agent's
+own last action (as clipped and sent to the env). Task names serve only to pick each env's group
+(its encoder and head) and its observation normalization; the model never receives a task id.
+
+Tasks without statistics in the checkpoint (held-out tasks: ML45 test tasks, Industrial Benchmark
+setpoints ≥ 80) use their group's pooled statistics: the mixture of the group's per-task
+normalizations, each task weighted equally. `AgentTask.norm_source` says which one an env got.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+from vintix.agent.cache import KVCache, cached_backbone
+from vintix.errors import UnknownTaskError, VintixError
+from vintix.model.checkpoint import load_pretrained
+from vintix.model.model import Vintix
+from vintix.tasks import get_task, make_env
+
+
+class AgentInputError(VintixError, ValueError):
+    """An observation, reward or prompt the agent cannot take (wrong shape, NaN or inf)."""
+
+
+@dataclass(frozen=True)
+class AgentTask:
+    """How the agent treats one env: group, normalization, action bounds."""
+
+    task: str
+    group: str
+    obs_mean: torch.Tensor
+    obs_std: torch.Tensor
+    reward_scale: float
+    norm_source: str
+    """'task' (the checkpoint's statistics of this task) or 'group-pooled' (held-out task)"""
+    action_low: np.ndarray
+    action_high: np.ndarray
+
+
+@cache
+def _registry_action_bounds(task: str) -> tuple[np.ndarray, np.ndarray]:
+    # Physics variations leave the action space alone, so one env per task name tells the bounds.
+    env = make_env(task)
+    try:
+        space = env.action_space
+        return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+    finally:
+        env.close()
+
+
+def _checkpoint_task_index(model: Vintix, task: str) -> int | None:
+    """Index of `task` in the checkpoint's norms, matching the name or any registry alias."""
+    try:
+        return model.task_index(task)
+    except UnknownTaskError:
+        pass
+    try:
+        canonical = get_task(task).name
+    except UnknownTaskError:
+        return None
+    for index, norm in enumerate(model.task_norms):
+        try:
+            if get_task(norm.task).name == canonical:
+                return index
+        except UnknownTaskError:
+            continue
+    return None
+
+
+def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None = None) -> AgentTask:
+    """Group and normalization of `task` for `model`; an unknown task or group is a clear error."""
+    index = _checkpoint_task_index(model, task)
+    if index is not None:
+        group = model.task_norms[index].group
+        dim = model.groups[group].obs_dim
+        mean, std = model.obs_mean[index, :dim], model.obs_std[index, :dim]
+        reward_scale, source = float(model.reward_scale[index]), "task"
+    else:
+        spec = get_task(task)  # raises UnknownTaskError naming close matches
+        group = spec.group
+        if group not in model.groups:
+            raise UnknownTaskError(
+                f"task {task!r} belongs to group {group!r}, which this checkpoint has no encoder for; its "
+                f"groups are {sorted(model.groups)}. Evaluate tasks of those groups or train on {group!r}."
+            )
+        dim = model.groups[group].obs_dim
+        members = [i for i, norm in enumerate(model.task_norms) if norm.group == group]
+        means, stds = model.obs_mean[members, :dim], model.obs_std[members, :dim]
+        mean = means.mean(0)
+        std = ((stds**2 + means**2).mean(0) - mean**2).clamp_min(0).sqrt().clamp_min(model.config.std_floor)
+        reward_scale, source = spec.reward_scale, "group-pooled"
+    spec_dims = _registry_dims(task)
+    if spec_dims is not None and spec_dims[0] != model.groups[group].obs_dim:
+        raise AgentInputError(
+            f"task {task!r} has {spec_dims[0]}-dim observations but the checkpoint's group {group!r} expects "
+            f"{model.groups[group].obs_dim}; the checkpoint was trained on another version of this env"
+        )
+    if action_space is not None:
+        low, high = np.asarray(action_space.low, np.float32), np.asarray(action_space.high, np.float32)
+    else:
+        low, high = _registry_action_bounds(task)
+    act_dim = model.groups[group].act_dim
+    if low.shape != (act_dim,):
+        raise AgentInputError(
+            f"task {task!r}: action space has shape {low.shape}, group {group!r} acts in {act_dim} dims"
+        )
+    return AgentTask(task, group, mean, std, reward_scale, source, low, high)
+
+
+def _registry_dims(task: str) -> tuple[int, int] | None:
+    try:
+        spec = get_task(task)
+    except UnknownTaskError:
+        return None
+    return spec.obs_dim, spec.act_dim
+
+
+@dataclass(frozen=True)
+class _GroupBatch:
+    """The envs of one group within the batch, with their per-env constants stacked once at reset."""
+
+    envs: torch.Tensor
+    obs_mean: torch.Tensor
+    obs_std: torch.Tensor
+    reward_scale: torch.Tensor
+    action_low: torch.Tensor
+    action_high: torch.Tensor
+
+    @classmethod
+    def of(cls, tasks: list[AgentTask], group: str, device: torch.device) -> _GroupBatch:
+        envs = [i for i, t in enumerate(tasks) if t.group == group]
+        members = [tasks[i] for i in envs]
+
+        def stack(values: list[np.ndarray]) -> torch.Tensor:
+            return torch.as_tensor(np.stack(values), dtype=torch.float32, device=device)
+
+        return cls(
+            envs=torch.tensor(envs, device=device),
+            obs_mean=torch.stack([t.obs_mean for t in members]).to(device),
+            obs_std=torch.stack([t.obs_std for t in members]).to(device),
+            reward_scale=torch.tensor([t.reward_scale for t in members], device=device),
+            action_low=stack([t.action_low for t in members]),
+            action_high=stack([t.action_high for t in members]),
+        )
+
+
+class Agent:
+    """A stateful policy over a batch of envs, with a sliding-window KV cache (`KVCache`).
+
+    ``agent.reset(tasks)``, then each step ``actions = agent.act(obs, prev_rewards, episode_starts)``.
+    Envs of a batch may belong to different groups; they share one backbone forward per step.
+    """
+
+    def __init__(self, model: Vintix) -> None:
+        self.model = model
+        self.tasks: list[AgentTask] = []
+        self.cache: KVCache | None = None
+        self._groups: dict[str, _GroupBatch] = {}
+        self._prev_action: dict[str, torch.Tensor] = {}
+
+    @classmethod
+    def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
+        """An agent around the checkpoint saved in `directory` (see `vintix.model.save_pretrained`)."""
+        return cls(load_pretrained(directory, device))
+
+    @property
+    def device(self) -> torch.device:
+        return self.model.ln_f.weight.device
+
+    @property
+    def steps(self) -> int:
+        """Tokens fed since the last reset (prompt included)."""
+        return 0 if self.cache is None else self.cache.length
+
+    def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None = None) -> None:
+        """Start a cold (empty-context) run on one env per task name. Actions are clipped to
+        `action_spaces` (default: each task's registry env's action space)."""
+        if not tasks:
+            raise ValueError("reset needs at least one task")
+        if action_spaces is not None and len(action_spaces) != len(tasks):
+            raise ValueError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces")
+        spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
+        self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces)]
+        groups = sorted({t.group for t in self.tasks})
+        self._groups = {g: _GroupBatch.of(self.tasks, g, self.device) for g in groups}
+        self._prev_action = {
+            g: torch.zeros(len(self._groups[g].envs), self.model.groups[g].act_dim, device=self.device) for g in groups
+        }
+        self.cache = KVCache.for_model(self.model, len(self.tasks))
+
+    def _check(self, what: str, env: int, values: np.ndarray, shape: tuple[int, ...]) -> None:
+        task = self.tasks[env]
+        if values.shape != shape:
+            raise AgentInputError(
+                f"env {env} ({task.task}, group {task.group!r}): {what} has shape {values.shape}, the group "
+                f"expects {shape}; is this env the task the agent was reset with?"
+            )
+        if not np.isfinite(values).all():
+            raise AgentInputError(
+                f"env {env} ({task.task}): {what} contains NaN or inf; the env diverged (check its physics "
+                "variation) or returned an invalid value; the agent does not sanitize inputs"
+            )
+
+    def _tokens(
+        self, obs: Sequence[np.ndarray], prev_actions: dict[str, torch.Tensor], prev_rewards: np.ndarray,
+        episode_starts: np.ndarray,
+    ) -> torch.Tensor:
+        """Tokens ``[B, T, d_model]`` from per-env obs ``[T, obs_dim]``, rewards/starts ``[B, T]``."""
+        steps = prev_rewards.shape[1]
+        tokens = torch.empty(len(self.tasks), steps, self.model.config.d_model, device=self.device)
+        for group, batch in self._groups.items():
+            envs = batch.envs.tolist()
+            o = torch.as_tensor(np.stack([obs[i] for i in envs]), dtype=torch.float32, device=self.device)
+            o = (o - batch.obs_mean.unsqueeze(1)) / batch.obs_std.unsqueeze(1)
+            reward = torch.as_tensor(prev_rewards[envs], dtype=torch.float32, device=self.device)
+            reward = reward * batch.reward_scale.unsqueeze(1)
+            start = torch.as_tensor(episode_starts[envs], device=self.device)
+            tokens[batch.envs] = self.model.encoders[group](o, prev_actions[group], reward, start)
+        return tokens
+
+    @torch.inference_mode()
+    def act(
+        self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
+        episode_starts: Sequence[bool] | np.ndarray,
+    ) -> list[np.ndarray]:
+        """One step of every env: actions (clipped to each env's bounds), one array per env.
+
+        ``prev_rewards[i]`` is the reward env ``i`` returned for the agent's previous action; it is
+        ignored where ``episode_starts[i]`` (the first observation of an episode).
+        """
+        if self.cache is None:
+            raise RuntimeError("call agent.reset(tasks) before agent.act(...)")
+        batch = len(self.tasks)
+        starts = np.asarray(episode_starts, dtype=bool).reshape(-1)
+        rewards = np.where(starts, 0.0, np.asarray(prev_rewards, dtype=np.float64).reshape(-1))
+        if len(obs) != batch or starts.shape != (batch,) or rewards.shape != (batch,):
+            raise AgentInputError(
+                f"the agent was reset with {batch} envs; got {len(obs)} observations, {rewards.shape[0]} rewards, "
+                f"{starts.shape[0]} episode starts"
+            )
+        observations = [np.asarray(o, dtype=np.float32) for o in obs]
+        for i, task in enumerate(self.tasks):
+            self._check("observation", i, observations[i], (self.model.groups[task.group].obs_dim,))
+            self._check("previous reward", i, rewards[i : i + 1], (1,))
+        prev_actions = {g: a.unsqueeze(1) for g, a in self._prev_action.items()}
+        tokens = self._tokens([o[None] for o in observations], prev_actions, rewards[:, None], starts[:, None])
+        hidden = cached_backbone(self.model, tokens, self.cache)[:, -1]
+        actions: list[np.ndarray] = [np.empty(0)] * batch
+        for group, batch in self._groups.items():
+            action = torch.clamp(self.model.head(group, hidden[batch.envs]), batch.action_low, batch.action_high)
+            self._prev_action[group] = action
+            for i, a in zip(batch.envs.tolist(), action.cpu().numpy()):
+                actions[i] = a
+        return actions
+
+    @torch.inference_mode()
+    def prompt(
+        self, observations: Sequence[np.ndarray], actions: Sequence[np.ndarray], rewards: Sequence[np.ndarray],
+        step_nums: Sequence[np.ndarray],
+    ) -> None:
+        """Feed stored steps (rows of a learning history, one array ``[T, ...]`` per env, the same T
+        for every env and at most the window) as context before acting: a prompted, not cold, start."""
+        if self.cache is None:
+            raise RuntimeError("call agent.reset(tasks) before agent.prompt(...)")
+        steps = len(step_nums[0])
+        if any(len(s) != steps for s in step_nums):
+            raise AgentInputError("every env's prompt must have the same number of steps")
+        for i, task in enumerate(self.tasks):
+            spec = self.model.groups[task.group]
+            self._check("prompt observations", i, np.asarray(observations[i]), (steps, spec.obs_dim))
+            self._check("prompt actions", i, np.asarray(actions[i]), (steps, spec.act_dim))
+            self._check("prompt rewards", i, np.asarray(rewards[i]), (steps,))
+        # Row t of a history: o_t, a_t taken at o_t, r_t after it; token t carries a_{t-1}, r_{t-1}.
+        shifted = {
+            g: torch.as_tensor(
+                np.stack([np.concatenate([np.zeros_like(actions[i][:1]), actions[i][:-1]]) for i in b.envs.tolist()]),
+                dtype=torch.float32, device=self.device,
+            )
+            for g, b in self._groups.items()
+        }
+        prev_rewards = np.stack([np.concatenate([[0.0], np.asarray(r[:-1], np.float64)]) for r in rewards])
+        starts = np.stack([np.asarray(s) == 0 for s in step_nums])
+        starts[:, 0] = True  # a prompt's first step has nothing before it
+        cached_backbone(self.model, self._tokens(observations, shifted, prev_rewards, starts), self.cache)
+        for g, b in self._groups.items():
+            self._prev_action[g] = torch.as_tensor(
+                np.stack([actions[i][-1] for i in b.envs.tolist()]), dtype=torch.float32, device=self.device
+            )

@@ -1,0 +1,106 @@
+"""The agent: cold start equals the model's forward, mixed-group batches, action bounds, held-out
+tasks, and clear errors for inputs it cannot take."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from gymnasium.spaces import Box
+
+import vintix
+from inference_model import random_inputs, tiny_model
+from vintix.agent import Agent, AgentInputError
+from vintix.errors import UnknownTaskError
+from vintix.model import save_pretrained
+
+UNBOUNDED = {dim: Box(-np.inf, np.inf, (dim,)) for dim in (1, 4)}
+
+
+def play(agent: Agent, inputs: list[dict], steps: int) -> list[np.ndarray]:
+    """Feed each env's stored obs/reward/starts step by step; actions [steps, act_dim] per env."""
+    actions = [[] for _ in inputs]
+    for t in range(steps):
+        out = agent.act([x["obs"][0, t] for x in inputs], [x["prev_reward"][0, t] for x in inputs],
+                        [x["step_num"][0, t] == 0 for x in inputs])
+        for i, a in enumerate(out):
+            actions[i].append(a)
+    return [np.stack(a) for a in actions]
+
+
+def test_from_pretrained_cold_start_equals_the_models_forward_over_the_same_history(tmp_path):
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    agent = vintix.Agent.from_pretrained(tmp_path / "ckpt")
+    model = agent.model
+    inputs = random_inputs(model, "metaworld", 1, steps=20, episode=6)
+    agent.reset(["push-v3"], [UNBOUNDED[4]])  # no clipping to hide a difference
+    actions = play(agent, [inputs], 20)[0]
+    # the model sees the agent's own previous actions
+    prev_action = np.concatenate([np.zeros((1, 4), np.float32), actions[:-1]])[None]
+    with torch.inference_mode():
+        expected = model("metaworld", torch.tensor([model.task_index("push-v3")]), torch.tensor(inputs["obs"]),
+                         torch.tensor(prev_action), torch.tensor(inputs["prev_reward"]),
+                         torch.tensor(inputs["step_num"]))[0].numpy()
+    np.testing.assert_allclose(actions, expected, rtol=1e-5, atol=1e-5)
+
+
+def test_a_mixed_group_batch_acts_like_each_env_alone():
+    model = tiny_model()
+    tasks = ["reach-v3", "InvertedPendulum-v5", "push-v3"]
+    spaces = [UNBOUNDED[4], UNBOUNDED[1], UNBOUNDED[4]]
+    inputs = [random_inputs(model, model.task_norms[model.task_index(t)].group, 1, steps=12, seed=i)
+              for i, t in enumerate(tasks)]
+    agent = Agent(model)
+    agent.reset(tasks, spaces)
+    together = play(agent, inputs, 12)
+    for i, task in enumerate(tasks):
+        agent.reset([task], [spaces[i]])
+        np.testing.assert_allclose(together[i], play(agent, [inputs[i]], 12)[0], rtol=1e-5, atol=1e-5)
+
+
+def test_actions_are_clipped_to_each_envs_bounds():
+    model = tiny_model()
+    with torch.no_grad():
+        for head in model.heads.values():
+            head[-1].weight.mul_(1000.0)  # a head that shouts far outside every action space
+    agent = Agent(model)
+    agent.reset(["reach-v3", "InvertedPendulum-v5"])  # bounds from the real envs: [-1, 1]^4, [-3, 3]
+    inputs = [random_inputs(model, "metaworld", 1, 10), random_inputs(model, "mujoco-invertedpendulum", 1, 10)]
+    reach, pendulum = play(agent, inputs, 10)
+    assert np.abs(reach).max() == pytest.approx(1.0) and np.all(np.abs(reach) <= 1.0)
+    assert np.abs(pendulum).max() == pytest.approx(3.0) and np.all(np.abs(pendulum) <= 3.0)
+
+
+def test_a_held_out_task_uses_its_groups_pooled_normalization():
+    agent = Agent(tiny_model())
+    agent.reset(["door-lock-v3", "reach-v3"])  # ML45 test task: no statistics in the checkpoint
+    assert [t.norm_source for t in agent.tasks] == ["group-pooled", "task"]
+    reach, push = (agent.model.task_norms[agent.model.task_index(t)] for t in ("reach-v3", "push-v3"))
+    expected_mean = (np.array(reach.obs_mean) + np.array(push.obs_mean)) / 2
+    np.testing.assert_allclose(agent.tasks[0].obs_mean.numpy(), expected_mean, rtol=1e-5, atol=1e-5)
+    assert len(agent.act([np.zeros(39), np.zeros(39)], [0.0, 0.0], [True, True])) == 2
+
+
+def test_unknown_task_or_group_is_a_clear_error():
+    agent = Agent(tiny_model())
+    with pytest.raises(UnknownTaskError, match="reach-v3"):
+        agent.reset(["reech-v3"])
+    with pytest.raises(UnknownTaskError, match="group 'industrial_benchmark'.*no encoder"):
+        agent.reset(["industrial-benchmark-35-v1"])
+
+
+def test_wrong_observation_dim_or_non_finite_input_is_a_clear_error():
+    agent = Agent(tiny_model())
+    with pytest.raises(RuntimeError, match="reset"):
+        agent.act([np.zeros(39)], [0.0], [True])
+    agent.reset(["reach-v3", "InvertedPendulum-v5"])
+    with pytest.raises(AgentInputError, match="env 1 .*InvertedPendulum-v5.*shape \\(39,\\).*expects \\(4,\\)"):
+        agent.act([np.zeros(39), np.zeros(39)], [0.0, 0.0], [True, True])
+    observation = np.zeros(39)
+    observation[3] = np.nan
+    with pytest.raises(AgentInputError, match="env 0 .*NaN or inf"):
+        agent.act([observation, np.zeros(4)], [0.0, 0.0], [True, True])
+    with pytest.raises(AgentInputError, match="previous reward contains NaN or inf"):
+        agent.act([np.zeros(39), np.zeros(4)], [0.0, np.inf], [False, False])
+    # a reward at an episode start is ignored, whatever it is
+    assert len(agent.act([np.zeros(39), np.zeros(4)], [np.nan, 0.0], [True, False])) == 2
