@@ -1,0 +1,138 @@
+"""Training checkpoints: the model checkpoint (`save_pretrained`) plus what exact resume needs.
+
+``<out>/checkpoints/step-00000200/`` holds ``model.safetensors`` + ``model.json`` (so
+``load_pretrained`` works on it with no dataset), ``optimizer.safetensors`` (AdamW moments keyed
+``<parameter name>/<state key>``: tensors are never pickled), ``rng.safetensors`` (every rank's
+torch RNG state) and ``trainer.json`` (step, tokens seen, optimizer hyperparameters, the config).
+The directory is assembled under ``step-N.partial`` and renamed when complete, so a checkpoint
+directory without ``.partial`` is always whole.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import shutil
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors.torch import load_file, save_file
+
+from vintix.atomic import PARTIAL_SUFFIX, atomic_path, atomic_write_text
+from vintix.model.checkpoint import CheckpointError, read_metadata, save_pretrained
+from vintix.model.model import GroupSpec, ModelConfig, Vintix
+
+CHECKPOINTS = "checkpoints"
+STATE_FILE = "trainer.json"
+OPTIMIZER_FILE = "optimizer.safetensors"
+RNG_FILE = "rng.safetensors"
+_STEP_DIR = re.compile(r"step-(\d+)")
+
+
+def checkpoint_dir(out: str | os.PathLike[str], step: int) -> Path:
+    """Where the checkpoint of optimizer step ``step`` lives."""
+    return Path(out) / CHECKPOINTS / f"step-{step:08d}"
+
+
+def list_checkpoints(out: str | os.PathLike[str]) -> list[Path]:
+    """Complete checkpoints of a run, oldest first."""
+    folder = Path(out) / CHECKPOINTS
+    if not folder.is_dir():
+        return []
+    found = [p for p in folder.iterdir() if _STEP_DIR.fullmatch(p.name) and (p / STATE_FILE).is_file()]
+    return sorted(found, key=lambda p: int(p.name.split("-")[1]))
+
+
+def latest_checkpoint(out: str | os.PathLike[str]) -> Path | None:
+    """The newest complete checkpoint of a run, if any."""
+    found = list_checkpoints(out)
+    return found[-1] if found else None
+
+
+def _optimizer_tensors(optimizer: torch.optim.Optimizer, names: list[str]) -> tuple[dict[str, torch.Tensor], list[dict]]:
+    """AdamW state as flat named tensors, and its param groups with parameter names instead of indices."""
+    state = optimizer.state_dict()
+    tensors = {f"{names[i]}/{key}": value.detach().cpu().contiguous()
+               for i, per_param in state["state"].items() for key, value in per_param.items()}
+    groups = [{**g, "params": [names[i] for i in g["params"]]} for g in state["param_groups"]]
+    return tensors, groups
+
+
+def load_optimizer(optimizer: torch.optim.Optimizer, names: list[str], directory: Path) -> None:
+    """Restore optimizer state saved by `save_training_checkpoint` (names must match the model's)."""
+    tensors = load_file(str(directory / OPTIMIZER_FILE))
+    groups = json.loads((directory / STATE_FILE).read_text())["optimizer_param_groups"]
+    index = {name: i for i, name in enumerate(names)}
+    missing = sorted({n for g in groups for n in g["params"]} ^ set(names))
+    if missing:
+        raise CheckpointError(f"{directory}: optimizer state does not match the model's parameters ({missing[:5]})")
+    state: dict[int, dict[str, torch.Tensor]] = {}
+    for key, value in tensors.items():
+        name, field = key.rsplit("/", 1)
+        state.setdefault(index[name], {})[field] = value
+    param_groups = [{**g, "betas": tuple(g["betas"]), "params": [index[n] for n in g["params"]]} for g in groups]
+    optimizer.load_state_dict({"state": state, "param_groups": param_groups})
+
+
+def save_training_checkpoint(
+    directory: Path, model: Vintix, optimizer: torch.optim.Optimizer, param_names: list[str],
+    rng: dict[str, torch.Tensor], state: dict[str, Any], extra: dict[str, Any],
+) -> Path:
+    """Write a whole checkpoint directory atomically (see the module docstring)."""
+    partial = directory.with_name(directory.name + PARTIAL_SUFFIX)
+    shutil.rmtree(partial, ignore_errors=True)
+    save_pretrained(model, partial, extra=extra)
+    tensors, groups = _optimizer_tensors(optimizer, param_names)
+    with atomic_path(partial / OPTIMIZER_FILE) as temporary:
+        save_file(tensors, str(temporary))
+    with atomic_path(partial / RNG_FILE) as temporary:
+        save_file({k: v.contiguous() for k, v in rng.items()}, str(temporary))
+    atomic_write_text(partial / STATE_FILE, json.dumps({**state, "optimizer_param_groups": groups}, indent=1) + "\n")
+    if directory.exists():
+        shutil.rmtree(directory)
+    os.replace(partial, directory)
+    return directory
+
+
+def read_training_state(directory: Path) -> dict[str, Any]:
+    """``trainer.json`` of a checkpoint."""
+    return json.loads((directory / STATE_FILE).read_text())
+
+
+def read_rng(directory: Path) -> dict[str, torch.Tensor]:
+    """Saved RNG states: ``cpu`` (and ``cuda``) as ``[world_size, n]`` byte tensors."""
+    return load_file(str(directory / RNG_FILE))
+
+
+def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec], task_names: list[str]) -> None:
+    """Refuse to resume a run whose checkpoint was made for another model or another task set."""
+    meta = read_metadata(directory)
+    problems = []
+    saved_config, wanted_config = meta["config"], dataclasses.asdict(config)
+    changed = sorted(k for k in set(saved_config) | set(wanted_config) if saved_config.get(k) != wanted_config.get(k))
+    if changed:
+        problems.append("model config differs in " + ", ".join(
+            f"{k} (checkpoint {saved_config.get(k)!r}, now {wanted_config.get(k)!r})" for k in changed))
+    saved_groups = [(g["name"], g["obs_dim"], g["act_dim"]) for g in meta["groups"]]
+    wanted_groups = [(g.name, g.obs_dim, g.act_dim) for g in groups]
+    if saved_groups != wanted_groups:
+        problems.append(f"groups differ (checkpoint {saved_groups}, now {wanted_groups})")
+    saved_tasks = [t["task"] for t in meta["task_norms"]]
+    if saved_tasks != task_names:
+        problems.append(f"tasks differ (checkpoint {saved_tasks}, now {task_names})")
+    if problems:
+        raise CheckpointError(
+            f"cannot resume from {directory}: " + "; ".join(problems)
+            + ". Train into a new --out directory, or re-run with the config and data of the original run"
+        )
+
+
+def prune_checkpoints(out: str | os.PathLike[str], keep: int) -> None:
+    """Delete all but the ``keep`` newest checkpoints, and leftovers of interrupted saves."""
+    for old in list_checkpoints(out)[:-keep]:
+        shutil.rmtree(old)
+    for partial in (Path(out) / CHECKPOINTS).glob(f"step-*{PARTIAL_SUFFIX}"):
+        shutil.rmtree(partial, ignore_errors=True)

@@ -1,0 +1,148 @@
+"""The training configuration: one dataclass, every field documented (CleanRL style).
+
+``--config`` takes a model preset name (``tiny``, ``small``, ``paper``: the defaults below with that
+model) or a YAML file of TrainConfig fields; ``--set field=value`` overrides single fields.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from vintix.errors import VintixError
+from vintix.model.model import PRESETS, ModelConfig, preset
+
+
+class ConfigError(VintixError, ValueError):
+    """A training config that cannot be read or has unknown/invalid fields."""
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run depends on; saved in every checkpoint."""
+
+    data: str = "data"
+    """dataset root (<root>/<domain>/<task>/*.h5)"""
+    out: str = "runs/default"
+    """run directory: checkpoints/, log.csv, tensorboard/; re-running with the same out resumes"""
+    model: str = "tiny"
+    """model preset: tiny, small or paper"""
+    model_overrides: dict[str, Any] = field(default_factory=dict)
+    """ModelConfig fields to override, e.g. {mask_reward: true} for the AD-without-rewards ablation"""
+    tasks: list[str] = field(default_factory=list)
+    """train only on these task names / domains / splits (empty: every task in the dataset)"""
+    window_len: int | None = None
+    """steps per training window L (default: the model's context_len)"""
+    batch_size: int = 8
+    """windows per micro-batch per process"""
+    grad_accum: int = 1
+    """micro-batches per optimizer step (equal weights)"""
+    max_steps: int = 2000
+    """optimizer steps in the whole run (the cosine schedule ends here)"""
+    lr: float = 3e-4
+    """peak learning rate (paper: 3e-4)"""
+    min_lr_fraction: float = 0.1
+    """the cosine decays to lr * min_lr_fraction at max_steps"""
+    warmup_steps: int = 100
+    """linear warm-up, in optimizer steps"""
+    beta1: float = 0.9
+    """AdamW beta1 (paper: 0.9)"""
+    beta2: float = 0.99
+    """AdamW beta2 (paper: 0.99)"""
+    weight_decay: float = 0.1
+    """AdamW weight decay, applied to matrices only (not biases, norms, padding vectors)"""
+    grad_clip: float = 1.0
+    """clip the global gradient norm to this (0: no clipping)"""
+    episode_sparsity: int = 1
+    """keep every k-th episode of a history in a window (1: all episodes)"""
+    stochastic_sparsity: bool = False
+    """draw the sparsity of each window uniformly from 1..episode_sparsity"""
+    task_sampling: str = "uniform"
+    """'uniform' over tasks (the paper) or 'volume' (proportional to a task's steps)"""
+    expert_distillation: bool = False
+    """ablation: train only on the noise-free tail of each history (expert distillation)"""
+    expert_tail_fraction: float | None = None
+    """tail fraction for expert_distillation (default: each task JSON's noise_free_fraction)"""
+    seed: int = 0
+    """seed of the model initialization and of the window sampler"""
+    num_workers: int = 0
+    """DataLoader worker processes per training process (0: load in the training process)"""
+    device: str = "auto"
+    """'auto' (CUDA if available), 'cpu' or 'cuda'; under torchrun each rank takes cuda:LOCAL_RANK"""
+    checkpoint_every: int = 200
+    """optimizer steps between checkpoints (the last step is always saved)"""
+    keep_checkpoints: int = 3
+    """most recent checkpoints kept on disk (older ones are deleted)"""
+    log_every: int = 10
+    """optimizer steps between log lines (CSV, TensorBoard, progress bar)"""
+    tensorboard: bool = True
+    """also write TensorBoard event files under <out>/tensorboard"""
+    stats_cache_dir: str | None = None
+    """where normalization statistics are cached (default: ~/.cache/vintix/norm-stats)"""
+
+    def __post_init__(self) -> None:
+        if self.model not in PRESETS:
+            raise ConfigError(f"model preset {self.model!r} is unknown; choose one of {sorted(PRESETS)}")
+        positive = {"batch_size": self.batch_size, "grad_accum": self.grad_accum, "max_steps": self.max_steps,
+                    "episode_sparsity": self.episode_sparsity, "checkpoint_every": self.checkpoint_every,
+                    "keep_checkpoints": self.keep_checkpoints, "log_every": self.log_every}
+        bad = [f"{k}={v}" for k, v in positive.items() if v < 1]
+        if bad:
+            raise ConfigError(f"these fields must be >= 1: {', '.join(bad)}")
+        if self.task_sampling not in ("uniform", "volume"):
+            raise ConfigError(f"task_sampling must be 'uniform' or 'volume', got {self.task_sampling!r}")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
+        if self.window_len is not None and self.window_len > self.model_config().context_len:
+            raise ConfigError(
+                f"window_len {self.window_len} exceeds the model's context_len {self.model_config().context_len}; "
+                "lower window_len or raise model_overrides.context_len"
+            )
+
+    def model_config(self) -> ModelConfig:
+        """The preset with ``model_overrides`` applied."""
+        known = {f.name for f in dataclasses.fields(ModelConfig)}
+        unknown = sorted(set(self.model_overrides) - known)
+        if unknown:
+            raise ConfigError(f"model_overrides has unknown ModelConfig fields {unknown}; known: {sorted(known)}")
+        return preset(self.model, **self.model_overrides)
+
+    @property
+    def window(self) -> int:
+        """The window length actually used."""
+        return self.window_len if self.window_len is not None else self.model_config().context_len
+
+
+def _parse_override(item: str) -> tuple[str, Any]:
+    if "=" not in item:
+        raise ConfigError(f"--set expects field=value, got {item!r}")
+    key, value = item.split("=", 1)
+    return key.strip(), yaml.safe_load(value)
+
+
+def load_config(config: str, overrides: dict[str, Any] | None = None, settings: list[str] | None = None) -> TrainConfig:
+    """A TrainConfig from a preset name or a YAML file, then ``overrides`` (e.g. --data/--out), then
+    ``settings`` (``"field=value"`` strings, values parsed as YAML)."""
+    if config in PRESETS:
+        fields: dict[str, Any] = {"model": config}
+    else:
+        path = Path(config)
+        if not path.is_file():
+            raise ConfigError(f"--config {config!r} is neither a model preset ({', '.join(PRESETS)}) nor a YAML file")
+        try:
+            fields = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError as error:
+            raise ConfigError(f"{path}: not valid YAML ({error})") from error
+        if not isinstance(fields, dict):
+            raise ConfigError(f"{path}: expected a mapping of TrainConfig fields")
+    fields.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    fields.update(_parse_override(item) for item in settings or [])
+    known = {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown = sorted(set(fields) - known)
+    if unknown:
+        raise ConfigError(f"unknown TrainConfig fields {unknown}; known: {sorted(known)}")
+    return TrainConfig(**fields)

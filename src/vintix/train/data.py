@@ -1,0 +1,402 @@
+"""Training windows over learning histories: what the trainer feeds the model.
+
+A *window* is ``L`` consecutive steps of one history after episode sparsity (keep every k-th
+episode). Tasks are drawn uniformly (the paper) or by data volume; within a task every valid window
+start is equally likely. Window ``i`` is a pure function of ``(seed, i)``, so the loader needs no
+state of its own: a resumed run asks for the same indices and gets the same windows, forked
+``DataLoader`` workers need no coordination, and DDP ranks simply take disjoint indices.
+
+Per-task observation statistics are computed once by streaming over the HDF5 step groups (memory
+stays at one group of rows) and cached under the dataset's fingerprint (file names, sizes, mtimes),
+so a changed history invalidates them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+
+from vintix.atomic import atomic_write_text
+from vintix.data.hdf5 import LearningHistory, TaskData, find_tasks
+from vintix.errors import DatasetError, UnknownTaskError, VintixError
+from vintix.model.model import GroupSpec, TaskNorm
+from vintix.tasks import get_task, resolve_tasks
+
+TaskSampling = Literal["uniform", "volume"]
+Window = dict[str, np.ndarray | int | str]
+Batch = dict[str, dict[str, torch.Tensor]]
+"""A micro-batch: group name -> that group's windows stacked (``task_idx``, ``obs``, ``prev_action``,
+``prev_reward``, ``step_num``, ``action``)."""
+
+
+class TrainingDataError(VintixError, ValueError):
+    """A dataset the trainer cannot use as it is (the message names the task and the fix)."""
+
+
+# ----------------------------------------------------------------------------------------------
+# Normalization statistics
+
+
+def default_stats_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/vintix/norm-stats`` (``~/.cache/...``): outside the dataset, which may be read-only."""
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "vintix" / "norm-stats"
+
+
+def task_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
+    """Name, size and mtime of every history file: any rewritten or added history changes it."""
+    return [[p.name, p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(paths)]
+
+
+def streaming_obs_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per-channel mean and std over every row, one HDF5 step group (<= 10k rows) at a time.
+
+    Chan et al.'s parallel merge of (count, mean, M2) in float64: exact up to rounding, and memory
+    does not grow with the dataset.
+    """
+    count, mean, m2 = 0, None, None
+    for history in histories:
+        for span in history.layout.groups:
+            obs = history.read(span.start, span.stop)["observation"].astype(np.float64)
+            n, chunk_mean = len(obs), obs.mean(axis=0)
+            chunk_m2 = ((obs - chunk_mean) ** 2).sum(axis=0)
+            if mean is None:
+                count, mean, m2 = n, chunk_mean, chunk_m2
+                continue
+            delta = chunk_mean - mean
+            total = count + n
+            mean = mean + delta * n / total
+            m2 = m2 + chunk_m2 + delta**2 * count * n / total
+            count = total
+    assert mean is not None and m2 is not None, "a task with histories has rows"
+    return mean, np.sqrt(m2 / count), count
+
+
+def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache_dir: Path) -> tuple[list[float], list[float]]:
+    """`streaming_obs_stats` of a task, read from / written to a per-task cache file keyed by fingerprint."""
+    key = hashlib.sha1(str(task.task_dir.resolve()).encode()).hexdigest()[:16]
+    path = cache_dir / f"{task.task_name}-{key}.json"
+    fingerprint = task_fingerprint(task.history_paths)
+    if path.is_file():
+        try:
+            cached = json.loads(path.read_text())
+            if cached.get("fingerprint") == fingerprint:
+                return cached["obs_mean"], cached["obs_std"]
+        except (json.JSONDecodeError, KeyError):
+            pass  # a damaged cache entry is recomputed, never trusted
+    mean, std, rows = streaming_obs_stats(histories)
+    entry = {"task_dir": str(task.task_dir.resolve()), "fingerprint": fingerprint, "rows": rows,
+             "obs_mean": mean.tolist(), "obs_std": std.tolist()}
+    atomic_write_text(path, json.dumps(entry) + "\n")
+    return entry["obs_mean"], entry["obs_std"]
+
+
+# ----------------------------------------------------------------------------------------------
+# Where windows may start
+
+
+@dataclass
+class HistoryWindows:
+    """One history's usable episodes and, per sparsity k, how many windows start in each."""
+
+    history: LearningHistory
+    bounds: np.ndarray
+    """Row where each usable episode starts, then the row where the last one ends."""
+    _starts: dict[tuple[int, int], np.ndarray] = field(default_factory=dict, repr=False)
+
+    @property
+    def steps(self) -> int:
+        """Usable rows."""
+        return int(self.bounds[-1] - self.bounds[0]) if len(self.bounds) else 0
+
+    def starts_per_episode(self, window_len: int, sparsity: int) -> np.ndarray:
+        """For each usable episode e, the number of offsets o such that episodes e, e+k, e+2k, ...
+        from row ``bounds[e] + o`` on hold at least ``window_len`` rows."""
+        key = (window_len, sparsity)
+        if key not in self._starts:
+            lengths = np.diff(self.bounds)
+            # Rows in episodes e, e+k, e+2k, ... to the end: a reversed cumulative sum per residue class.
+            kept = np.zeros_like(lengths)
+            for r in range(sparsity):
+                kept[r::sparsity] = np.cumsum(lengths[r::sparsity][::-1])[::-1]
+            self._starts[key] = np.clip(kept - window_len + 1, 0, lengths)
+        return self._starts[key]
+
+    def segments(self, episode: int, offset: int, window_len: int, sparsity: int) -> list[tuple[int, int]]:
+        """Row ranges [lo, hi) that make up the window starting ``offset`` rows into ``episode``."""
+        segments, need, e = [], window_len, episode
+        lo = int(self.bounds[e]) + offset
+        while need:
+            hi = min(int(self.bounds[e + 1]), lo + need)
+            segments.append((lo, hi))
+            need -= hi - lo
+            e += sparsity
+            if need:
+                lo = int(self.bounds[e])
+        return segments
+
+
+def usable_bounds(history: LearningHistory, tail_fraction: float | None) -> np.ndarray:
+    """Episode bounds of the whole history, or (expert distillation) of the episodes that start in
+    its last ``tail_fraction`` of rows: the noise-free tail of paper Algorithm 1."""
+    starts, n = history.episode_starts, history.num_steps
+    if tail_fraction is not None:
+        starts = starts[starts >= int(np.ceil((1.0 - tail_fraction) * n))]
+    return np.append(starts, n).astype(np.int64) if len(starts) else np.zeros(0, np.int64)
+
+
+# ----------------------------------------------------------------------------------------------
+# The dataset as the trainer sees it
+
+
+@dataclass
+class TaskWindows:
+    """One task: its group, its histories and its normalization."""
+
+    name: str
+    group: str
+    norm: TaskNorm
+    histories: list[HistoryWindows]
+    fingerprint: list[list[str | int]]
+
+    @property
+    def steps(self) -> int:
+        """Usable rows over all histories (the task's weight under volume sampling)."""
+        return sum(h.steps for h in self.histories)
+
+
+@dataclass
+class TrainingData:
+    """Tasks, groups and normalization of a dataset root, checked against the task registry."""
+
+    root: Path
+    tasks: list[TaskWindows]
+    groups: list[GroupSpec]
+
+    @property
+    def task_norms(self) -> list[TaskNorm]:
+        """What `Vintix` takes as ``task_norms`` (task index i = ``tasks[i]``)."""
+        return [t.norm for t in self.tasks]
+
+    @property
+    def fingerprint(self) -> str:
+        """One hash of every task's history files: stored in checkpoints to say what they were trained on."""
+        text = json.dumps({t.name: t.fingerprint for t in self.tasks}, sort_keys=True)
+        return hashlib.sha1(text.encode()).hexdigest()
+
+
+def _tail_fraction(task: TaskData, expert_distillation: bool, expert_tail_fraction: float | None) -> float | None:
+    if not expert_distillation:
+        return None
+    fraction = expert_tail_fraction if expert_tail_fraction is not None else task.metadata.get("noise_free_fraction")
+    if fraction is None:
+        raise TrainingDataError(
+            f"{task.task_dir}: expert distillation needs the noise-free tail fraction, but the task JSON has no "
+            "'noise_free_fraction'; set expert_tail_fraction in the training config"
+        )
+    if not 0 < float(fraction) <= 1:
+        raise TrainingDataError(f"{task.task_name}: noise-free tail fraction must lie in (0, 1], got {fraction}")
+    return float(fraction)
+
+
+def _check_group_dims(found: list[tuple[TaskData, str]]) -> list[GroupSpec]:
+    """One GroupSpec per group, refusing a group whose tasks disagree on dims."""
+    dims: dict[str, dict[tuple[int, int], list[str]]] = {}
+    for task, group in found:
+        dims.setdefault(group, {}).setdefault((task.obs_dim, task.act_dim), []).append(task.task_name)
+    for group, by_dims in dims.items():
+        if len(by_dims) > 1:
+            listing = "; ".join(f"(obs {o}, act {a}): {', '.join(names)}" for (o, a), names in sorted(by_dims.items()))
+            raise TrainingDataError(
+                f"group {group!r} mixes observation/action sizes: {listing}. Tasks of a group share encoders and a "
+                "head, so they must agree; fix the task JSONs/histories or the registry's group"
+            )
+    return [GroupSpec(group, *next(iter(by_dims))) for group, by_dims in sorted(dims.items())]
+
+
+def _histories(task: TaskData) -> list[LearningHistory]:
+    histories = [LearningHistory(p) for p in task.history_paths]
+    for h in histories:
+        if (h.obs_dim, h.act_dim) != (task.obs_dim, task.act_dim):
+            raise DatasetError(
+                h.path, f"holds obs {h.obs_dim} / act {h.act_dim} but its task JSON says obs {task.obs_dim} / act "
+                f"{task.act_dim}; run `vintix data validate`"
+            )
+    return histories
+
+
+def load_training_data(
+    root: str | os.PathLike[str],
+    tasks: Sequence[str] = (),
+    expert_distillation: bool = False,
+    expert_tail_fraction: float | None = None,
+    stats_cache_dir: str | os.PathLike[str] | None = None,
+) -> TrainingData:
+    """Index a dataset root for training: registry groups, reward scales, cached obs statistics.
+
+    ``tasks`` restricts training to task names/domains/splits (`resolve_tasks`); empty = every task
+    with histories. The reward scale is the task JSON's ``reward_scale`` when it has one (the data
+    says how it was recorded), else the registry's; the group always comes from the registry.
+    """
+    root = Path(root)
+    found = [t for t in find_tasks(root) if t.history_paths]
+    if tasks:
+        wanted = {spec.name for spec in resolve_tasks(list(tasks))}
+        found = [t for t in found if _registry_name(t) in wanted]
+    if not found:
+        raise TrainingDataError(f"{root}: no task folder with .h5 histories{' among ' + str(list(tasks)) if tasks else ''}; "
+                                "collect data first (`vintix collect`) or check --data")
+    specs = [(task, _registry_spec(task)) for task in found]
+    groups = _check_group_dims([(task, spec.group) for task, spec in specs])
+    cache_dir = Path(stats_cache_dir) if stats_cache_dir is not None else default_stats_cache_dir()
+    windows = []
+    for task, spec in specs:
+        histories = _histories(task)
+        mean, std = cached_obs_stats(task, histories, cache_dir)
+        scale = float(task.metadata.get("reward_scale", spec.reward_scale))
+        tail = _tail_fraction(task, expert_distillation, expert_tail_fraction)
+        windows.append(TaskWindows(
+            spec.name, spec.group, TaskNorm(spec.name, spec.group, mean, std, scale),
+            [HistoryWindows(h, usable_bounds(h, tail)) for h in histories], task_fingerprint(task.history_paths),
+        ))
+    names = [w.name for w in windows]
+    if len(set(names)) != len(names):
+        raise TrainingDataError(f"{root}: several task folders hold the same registry task ({sorted(names)}); merge them")
+    return TrainingData(root, windows, groups)
+
+
+def _registry_name(task: TaskData) -> str | None:
+    try:
+        return get_task(task.task_name).name
+    except UnknownTaskError:
+        return None
+
+
+def _registry_spec(task: TaskData):  # -> TaskSpec
+    try:
+        spec = get_task(task.task_name)
+    except UnknownTaskError as error:
+        raise TrainingDataError(
+            f"{task.task_dir}: task {task.task_name!r} is not in the task registry, so its group and reward scale are "
+            f"unknown ({error}); rename task_name in its JSON to a registry name or leave the folder out"
+        ) from error
+    return spec
+
+
+# ----------------------------------------------------------------------------------------------
+# Windows as a map-style dataset over an unbounded index
+
+
+class WindowDataset(torch.utils.data.Dataset):
+    """``dataset[i]``: window i, a deterministic function of ``(seed, i)``.
+
+    The first token of a window that starts mid-episode carries the true previous action and
+    reward (row ``start - 1``), not the episode-start padding. That is what the model sees at
+    inference once its sliding window is full: the oldest cached token was embedded with its real
+    previous action. Marking it as an episode start instead would teach the padding vectors to
+    appear mid-episode and contradict ``step_num``.
+    """
+
+    def __init__(self, data: TrainingData, window_len: int, sparsity: int = 1, stochastic_sparsity: bool = False,
+                 task_sampling: TaskSampling = "uniform", seed: int = 0) -> None:
+        if window_len < 1 or sparsity < 1:
+            raise ValueError(f"window_len and episode sparsity must be >= 1, got {window_len} and {sparsity}")
+        if task_sampling not in ("uniform", "volume"):
+            raise ValueError(f"task_sampling must be 'uniform' or 'volume', got {task_sampling!r}")
+        self.data, self.window_len, self.seed = data, window_len, seed
+        self.sparsities = list(range(1, sparsity + 1)) if stochastic_sparsity else [sparsity]
+        self._check_windows_fit()
+        weights = np.array([t.steps if task_sampling == "volume" else 1.0 for t in data.tasks], dtype=np.float64)
+        self.task_probs = weights / weights.sum()
+
+    def _check_windows_fit(self) -> None:
+        too_short = []
+        for task in self.data.tasks:
+            for k in self.sparsities:
+                if not any(h.starts_per_episode(self.window_len, k).sum() for h in task.histories):
+                    longest = max(h.steps for h in task.histories)
+                    too_short.append(f"{task.name} (longest usable history {longest} steps, sparsity {k})")
+                    break
+        if too_short:
+            raise TrainingDataError(
+                f"no history holds a window of {self.window_len} steps for: {'; '.join(too_short)}. Use a shorter "
+                "window_len, a lower episode_sparsity, longer histories, or leave these tasks out"
+            )
+
+    def locate(self, index: int) -> tuple[int, int, int, int, int]:
+        """(task, history, episode, offset, sparsity) of window ``index``."""
+        rng = np.random.default_rng((self.seed, index))
+        t = int(rng.choice(len(self.data.tasks), p=self.task_probs))
+        k = self.sparsities[int(rng.integers(len(self.sparsities)))]
+        task = self.data.tasks[t]
+        per_history = [h.starts_per_episode(self.window_len, k) for h in task.histories]
+        totals = np.array([s.sum() for s in per_history], dtype=np.float64)
+        h = int(rng.choice(len(totals), p=totals / totals.sum()))
+        # One uniform draw over every valid (episode, offset) pair of the history.
+        flat = int(rng.integers(totals[h]))
+        cumulative = np.cumsum(per_history[h])
+        e = int(np.searchsorted(cumulative, flat, side="right"))
+        offset = flat - (int(cumulative[e - 1]) if e else 0)
+        return t, h, e, offset, k
+
+    def __getitem__(self, index: int) -> Window:
+        t, h, e, offset, k = self.locate(index)
+        task = self.data.tasks[t]
+        history = task.histories[h]
+        parts: dict[str, list[np.ndarray]] = {key: [] for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
+        for lo, hi in history.segments(e, offset, self.window_len, k):
+            # Mid-episode start: read one row earlier for the true previous action/reward.
+            first = lo - 1 if lo > history.bounds[e] else lo
+            rows = history.history.read(first, hi)
+            skip = lo - first
+            act, rew = rows["action"], rows["reward"]
+            prev_act = act[:-1] if skip else np.concatenate([np.zeros_like(act[:1]), act[:-1]])
+            prev_rew = rew[:-1] if skip else np.concatenate([np.zeros_like(rew[:1]), rew[:-1]])
+            parts["obs"].append(rows["observation"][skip:])
+            parts["prev_action"].append(prev_act)
+            parts["prev_reward"].append(prev_rew)
+            parts["step_num"].append(rows["step_num"][skip:].astype(np.int64))
+            parts["action"].append(act[skip:])
+        window: Window = {key: np.concatenate(value) for key, value in parts.items()}
+        window.update(task_idx=t, group=task.group)
+        return window
+
+
+def collate_windows(windows: Sequence[Window]) -> Batch:
+    """Stack windows per group (sorted by group name, so every rank and run sees the same order)."""
+    by_group: dict[str, list[Window]] = {}
+    for w in windows:
+        by_group.setdefault(str(w["group"]), []).append(w)
+    batch: Batch = {}
+    for group in sorted(by_group):
+        members = by_group[group]
+        stacked = {key: torch.from_numpy(np.stack([w[key] for w in members]))  # type: ignore[misc]
+                   for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
+        stacked["task_idx"] = torch.tensor([int(w["task_idx"]) for w in members], dtype=torch.long)
+        batch[group] = stacked
+    return batch
+
+
+class WindowBatches(torch.utils.data.Sampler[list[int]]):
+    """Unbounded micro-batches of window indices for one rank, from a given micro-batch on.
+
+    Micro-batch m of rank r holds indices ``(m * world + r) * batch_size + j``: ranks never share a
+    window, and resuming at micro-batch m replays exactly what an uninterrupted run would see.
+    """
+
+    def __init__(self, batch_size: int, start_micro_batch: int = 0, rank: int = 0, world_size: int = 1) -> None:
+        self.batch_size, self.start, self.rank, self.world = batch_size, start_micro_batch, rank, world_size
+
+    def __iter__(self) -> Iterator[list[int]]:
+        m = self.start
+        while True:
+            first = (m * self.world + self.rank) * self.batch_size
+            yield list(range(first, first + self.batch_size))
+            m += 1

@@ -1,0 +1,433 @@
+"""Algorithm Distillation training: next-action MSE over multi-episode windows (paper §2.3, DESIGN §6).
+
+One loop serves one CPU, one GPU and ``torchrun`` DDP (gloo on CPU, nccl on GPU; rank 0 is global
+``RANK`` 0). Steps, the warm-up and the cosine all count *optimizer* steps; gradient accumulation
+weights every micro-batch equally. Re-running with the same ``out`` resumes from the newest
+checkpoint, and an interrupted-then-resumed run reproduces the uninterrupted one (the window
+sampler is a function of the window index, and model, optimizer, step and RNG are restored).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import dataclasses
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+import torch.distributed as dist
+import torch.nn.functional as F
+from torch import nn
+from tqdm import tqdm
+
+from vintix.atomic import atomic_write_text
+from vintix.model.checkpoint import load_pretrained
+from vintix.model.model import Vintix, count_parameters
+from vintix.train.checkpoint import (
+    check_resumable,
+    checkpoint_dir,
+    latest_checkpoint,
+    load_optimizer,
+    prune_checkpoints,
+    read_rng,
+    read_training_state,
+    save_training_checkpoint,
+)
+from vintix.train.config import TrainConfig
+from vintix.train.data import Batch, TrainingData, WindowBatches, WindowDataset, collate_windows, load_training_data
+
+Callback = Callable[[Vintix, int], None]
+"""Called on rank 0 as ``callback(model, step)`` after an optimizer step (e.g. in-context evaluation)."""
+
+
+# ----------------------------------------------------------------------------------------------
+# The pieces the loop (and the benchmark) are made of
+
+
+class WindowLoss(nn.Module):
+    """Per-window MSE of a micro-batch that may mix groups.
+
+    Each group's windows go through their own encoder, all windows through one backbone call, then
+    each group's head. Wrapping this (not the model) in DDP makes the whole mixed-group pass one
+    DDP forward. A window's loss is the mean over its positions and action channels.
+    """
+
+    def __init__(self, model: Vintix) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, batch: Batch) -> torch.Tensor:
+        groups = list(batch)
+        tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"])
+                  for g, b in batch.items()]
+        hidden = self.model.backbone(torch.cat(tokens))
+        losses = []
+        for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens])):
+            prediction = self.model.head(group, part).float()
+            losses.append(F.mse_loss(prediction, batch[group]["action"], reduction="none").mean(dim=(1, 2)))
+        return torch.cat(losses)
+
+
+def build_optimizer(model: nn.Module, config: TrainConfig) -> tuple[torch.optim.AdamW, list[str]]:
+    """AdamW with weight decay on matrices only; also the parameter names in the optimizer's order."""
+    named = [(n, p) for n, p in model.named_parameters() if p.requires_grad]
+    decay = [(n, p) for n, p in named if p.ndim >= 2]
+    no_decay = [(n, p) for n, p in named if p.ndim < 2]
+    optimizer = torch.optim.AdamW(
+        [{"params": [p for _, p in decay], "weight_decay": config.weight_decay},
+         {"params": [p for _, p in no_decay], "weight_decay": 0.0}],
+        lr=config.lr, betas=(config.beta1, config.beta2),
+    )
+    return optimizer, [n for n, _ in decay + no_decay]
+
+
+def learning_rate(step: int, config: TrainConfig) -> float:
+    """Linear warm-up to ``lr`` over ``warmup_steps``, then cosine to ``lr * min_lr_fraction`` at ``max_steps``."""
+    if step < config.warmup_steps:
+        return config.lr * (step + 1) / config.warmup_steps
+    progress = min(1.0, (step - config.warmup_steps) / max(1, config.max_steps - config.warmup_steps))
+    floor = config.lr * config.min_lr_fraction
+    return floor + (config.lr - floor) * 0.5 * (1.0 + math.cos(math.pi * progress))
+
+
+def flops_per_token(model: Vintix, group: str, window_len: int) -> float:
+    """Training FLOPs per token (forward + backward) for a window of ``window_len`` steps of ``group``.
+
+    PaLM's count: 6 per parameter the token passes through (backbone, the group's encoder and
+    head), plus 12 · layers · width · T for attention scores and values. The full T×T attention is
+    counted, as the additive-bias kernel computes it all.
+    """
+    used = (count_parameters(model.blocks) + count_parameters(model.ln_f)
+            + count_parameters(model.encoders[group]) + count_parameters(model.heads[group]))
+    config = model.config
+    return 6.0 * used + 12.0 * config.n_layers * config.d_model * window_len
+
+
+def measure_matmul_flops(device: torch.device, dtype: torch.dtype = torch.float32, size: int = 2048,
+                         repeats: int = 5) -> float:
+    """This device's dense matmul rate (FLOP/s, best of ``repeats``): the peak that MFU is relative to."""
+    a = torch.randn(size, size, device=device, dtype=dtype)
+    b = torch.randn(size, size, device=device, dtype=dtype)
+    best = math.inf
+    for _ in range(repeats + 1):  # the first call warms up the kernels
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+        start = time.perf_counter()
+        a @ b
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+        best = min(best, time.perf_counter() - start)
+    return 2.0 * size**3 / best
+
+
+def batch_to(batch: Batch, device: torch.device) -> Batch:
+    """Move a collated micro-batch to ``device``."""
+    return {g: {k: v.to(device, non_blocking=True) for k, v in b.items()} for g, b in batch.items()}
+
+
+def precision_context(device: torch.device) -> contextlib.AbstractContextManager:
+    """bf16 autocast on CUDA; plain fp32 on CPU, where bf16 matmuls are 10-100x slower (DESIGN §5)."""
+    if device.type == "cuda":
+        return torch.autocast("cuda", dtype=torch.bfloat16)
+    return contextlib.nullcontext()
+
+
+# ----------------------------------------------------------------------------------------------
+# Processes
+
+
+@dataclass(frozen=True)
+class Distributed:
+    """This process's place in a ``torchrun`` job (a single process is rank 0 of 1)."""
+
+    rank: int
+    local_rank: int
+    world_size: int
+
+    @property
+    def is_main(self) -> bool:
+        """Global rank 0 writes checkpoints and logs (never LOCAL_RANK 0 of every node)."""
+        return self.rank == 0
+
+    def barrier(self) -> None:
+        """Wait for every rank (nothing to wait for alone)."""
+        if self.world_size > 1:
+            dist.barrier()
+
+
+def resolve_device(name: str, local_rank: int) -> torch.device:
+    """'auto' picks CUDA when available; a torchrun rank takes its LOCAL_RANK's GPU."""
+    use_cuda = name == "cuda" or (name == "auto" and torch.cuda.is_available())
+    if use_cuda and not torch.cuda.is_available():
+        raise RuntimeError("device 'cuda' requested but torch sees no GPU; use device=cpu or auto")
+    return torch.device("cuda", local_rank) if use_cuda else torch.device("cpu")
+
+
+def init_distributed(device_name: str) -> tuple[Distributed, torch.device]:
+    """Join the ``torchrun`` process group if there is one (its env vars say so)."""
+    world_size = int(os.environ.get("WORLD_SIZE", "1"))
+    rank, local_rank = int(os.environ.get("RANK", "0")), int(os.environ.get("LOCAL_RANK", "0"))
+    device = resolve_device(device_name, local_rank)
+    if world_size > 1 and not dist.is_initialized():
+        if device.type == "cuda":
+            torch.cuda.set_device(device)
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+    return Distributed(rank, local_rank, world_size), device
+
+
+# ----------------------------------------------------------------------------------------------
+# Logs
+
+
+class MetricsLog:
+    """One CSV row per log step (and TensorBoard scalars); a resumed run first drops rows past its step."""
+
+    def __init__(self, out: Path, groups: Sequence[str], resume_step: int, tensorboard: bool) -> None:
+        self.columns = ["step", "tokens", "loss", "lr", "grad_norm", "tokens_per_s", "mfu",
+                        *[f"loss_{g}" for g in groups]]
+        self.path = out / "log.csv"
+        kept = []
+        if resume_step and self.path.is_file():
+            with self.path.open() as f:
+                kept = [row for row in csv.DictReader(f) if int(row["step"]) <= resume_step]
+        lines = [",".join(self.columns)] + [",".join(row.get(c, "") for c in self.columns) for row in kept]
+        atomic_write_text(self.path, "\n".join(lines) + "\n")
+        self._file = self.path.open("a", newline="")
+        self._csv = csv.DictWriter(self._file, self.columns)
+        self.tensorboard = None
+        if tensorboard:
+            from torch.utils.tensorboard import SummaryWriter  # imports the tensorboard package
+
+            # purge_step hides events a killed run wrote after its last checkpoint.
+            self.tensorboard = SummaryWriter(str(out / "tensorboard"), purge_step=resume_step or None)
+
+    def write(self, row: dict[str, float]) -> None:
+        """Append one row; every key but step/tokens also goes to TensorBoard."""
+        self._csv.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+        self._file.flush()
+        if self.tensorboard is not None:
+            for key, value in row.items():
+                if key not in ("step", "tokens") and math.isfinite(value):
+                    self.tensorboard.add_scalar(key.replace("loss_", "loss/"), value, int(row["step"]))
+
+    def close(self) -> None:
+        """Flush and close the files."""
+        self._file.close()
+        if self.tensorboard is not None:
+            self.tensorboard.close()
+
+
+# ----------------------------------------------------------------------------------------------
+# The trainer
+
+
+class Trainer:
+    """Builds data, model and optimizer from a `TrainConfig` (resuming if ``out`` has a checkpoint).
+
+    ``callbacks`` are ``(every, fn)`` pairs: ``fn(model, step)`` runs on rank 0 after every
+    ``every``-th optimizer step with the model in eval mode, inside a forked RNG so it cannot
+    change the rest of the run (the hook for periodic in-context evaluation, DESIGN §6).
+    """
+
+    def __init__(self, config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = ()) -> None:
+        self.config = config
+        self.callbacks = list(callbacks)
+        self.out = Path(config.out)
+        self.dist, self.device = init_distributed(config.device)
+        self.data = self._load_data()
+        self.window_len = config.window
+        torch.manual_seed(config.seed)
+        self.model = Vintix(config.model_config(), self.data.groups, self.data.task_norms)
+        self.step, self.tokens = 0, 0
+        resume = latest_checkpoint(self.out)
+        if resume is not None:
+            check_resumable(resume, self.model.config, self.data.groups, [t.name for t in self.data.tasks])
+            # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
+            self.model = load_pretrained(resume)
+        self.model.to(self.device).train()
+        self.optimizer, self.param_names = build_optimizer(self.model, config)
+        self.loss_module: nn.Module = WindowLoss(self.model)
+        if self.dist.world_size > 1:
+            # A micro-batch may lack some group, leaving its encoder and head without gradients.
+            self.loss_module = nn.parallel.DistributedDataParallel(
+                self.loss_module, device_ids=[self.device.index] if self.device.type == "cuda" else None,
+                find_unused_parameters=len(self.data.groups) > 1,
+            )
+        torch.manual_seed(config.seed + 1 + self.dist.rank)  # dropout differs between ranks
+        if resume is not None:
+            self._restore(resume)
+        self.flops = {g.name: flops_per_token(self.model, g.name, self.window_len) for g in self.data.groups}
+        self.resumed_from = resume
+
+    def _load_data(self) -> TrainingData:
+        # Rank 0 computes (and caches) the normalization statistics; the others then read the cache.
+        if not self.dist.is_main:
+            self.dist.barrier()
+        data = load_training_data(self.config.data, self.config.tasks, self.config.expert_distillation,
+                                  self.config.expert_tail_fraction, self.config.stats_cache_dir)
+        if self.dist.is_main:
+            self.dist.barrier()
+        return data
+
+    def _restore(self, directory: Path) -> None:
+        state = read_training_state(directory)
+        self.step, self.tokens = state["step"], state["tokens"]
+        load_optimizer(self.optimizer, self.param_names, directory)
+        rng = read_rng(directory)
+        if state["world_size"] == self.dist.world_size:
+            torch.set_rng_state(rng["cpu"][self.dist.rank].clone())
+            if "cuda" in rng and self.device.type == "cuda":
+                torch.cuda.set_rng_state(rng["cuda"][self.dist.rank].clone(), self.device)
+
+    def _gathered_rng(self) -> dict[str, torch.Tensor]:
+        states = {"cpu": torch.get_rng_state()}
+        if self.device.type == "cuda":
+            states["cuda"] = torch.cuda.get_rng_state(self.device)
+        if self.dist.world_size == 1:
+            return {k: v.unsqueeze(0) for k, v in states.items()}
+        gathered = {}
+        for key, state in states.items():
+            local = state.to(self.device) if dist.get_backend() == "nccl" else state
+            parts = [torch.empty_like(local) for _ in range(self.dist.world_size)]
+            dist.all_gather(parts, local)
+            gathered[key] = torch.stack([p.cpu() for p in parts])
+        return gathered
+
+    def _replica_checksums(self) -> list[list[float]]:
+        """(sum, sum of squares) of all parameters, per rank: DDP replicas must agree exactly."""
+        flat = torch.cat([p.detach().double().flatten() for p in self.model.parameters()])
+        local = torch.stack([flat.sum(), (flat * flat).sum()])
+        if self.dist.world_size == 1:
+            return [local.tolist()]
+        parts = [torch.empty_like(local) for _ in range(self.dist.world_size)]
+        dist.all_gather(parts, local)
+        return [p.tolist() for p in parts]
+
+    def save(self) -> Path:
+        """Checkpoint the current step (every rank must call this; rank 0 writes).
+
+        Also records every rank's parameter checksum and refuses to save diverged DDP replicas.
+        """
+        rng = self._gathered_rng()
+        checksums = self._replica_checksums()
+        if any(c != checksums[0] for c in checksums):
+            raise RuntimeError(f"DDP replicas diverged at step {self.step}: parameter checksums {checksums}")
+        directory = checkpoint_dir(self.out, self.step)
+        if self.dist.is_main:
+            state = {"step": self.step, "tokens": self.tokens, "world_size": self.dist.world_size,
+                     "replica_checksums": checksums, "train_config": dataclasses.asdict(self.config)}
+            extra = {"step": self.step, "tokens": self.tokens, "dataset": str(self.data.root),
+                     "dataset_fingerprint": self.data.fingerprint, "train_config": dataclasses.asdict(self.config)}
+            save_training_checkpoint(directory, self.model, self.optimizer, self.param_names, rng, state, extra)
+            prune_checkpoints(self.out, self.config.keep_checkpoints)
+        self.dist.barrier()
+        return directory
+
+    def _loader(self) -> torch.utils.data.DataLoader:
+        cfg = self.config
+        dataset = WindowDataset(self.data, self.window_len, cfg.episode_sparsity, cfg.stochastic_sparsity,
+                                cfg.task_sampling, cfg.seed)  # type: ignore[arg-type]
+        sampler = WindowBatches(cfg.batch_size, self.step * cfg.grad_accum, self.dist.rank, self.dist.world_size)
+        return torch.utils.data.DataLoader(
+            dataset, batch_sampler=sampler, collate_fn=collate_windows, num_workers=cfg.num_workers,
+            pin_memory=self.device.type == "cuda",
+        )
+
+    def run(self, until_step: int | None = None) -> Path:
+        """Train to ``max_steps`` (or stop early at ``until_step``, checkpointing there); returns the
+        last checkpoint directory."""
+        cfg = self.config
+        stop = min(until_step if until_step is not None else cfg.max_steps, cfg.max_steps)
+        groups = [g.name for g in self.data.groups]
+        group_index = {g: i for i, g in enumerate(groups)}
+        log = MetricsLog(self.out, groups, self.step, cfg.tensorboard) if self.dist.is_main else None
+        peak = torch.tensor(measure_matmul_flops(self.device), dtype=torch.float64, device=self.device)
+        if self.dist.world_size > 1:
+            dist.all_reduce(peak)  # every rank's share of the machine, measured at the same time
+        if self.dist.is_main:
+            n_params = count_parameters(self.model)
+            where = f"resuming from {self.resumed_from}" if self.resumed_from else "starting fresh"
+            print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
+                  f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device}; {where} at step {self.step}")
+        # Per group: summed window loss, windows, training FLOPs since the last log line.
+        sums = torch.zeros(len(groups), 3, dtype=torch.float64, device=self.device)
+        progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train", disable=not self.dist.is_main,
+                        dynamic_ncols=True)
+        batches = iter(self._loader())
+        last_time, last_tokens, last_dir = time.perf_counter(), self.tokens, None
+        while self.step < stop:
+            lr = learning_rate(self.step, cfg)
+            for group in self.optimizer.param_groups:
+                group["lr"] = lr
+            for micro in range(cfg.grad_accum):
+                batch = batch_to(next(batches), self.device)
+                sync = micro == cfg.grad_accum - 1 or self.dist.world_size == 1
+                with (contextlib.nullcontext() if sync else self.loss_module.no_sync()), precision_context(self.device):
+                    losses = self.loss_module(batch)
+                (losses.mean() / cfg.grad_accum).backward()
+                start = 0
+                for group, part in batch.items():
+                    n = part["obs"].shape[0]
+                    row = sums[group_index[group]]
+                    row[0] += losses[start : start + n].detach().double().sum()
+                    row[1] += n
+                    row[2] += n * self.window_len * self.flops[group]
+                    start += n
+            grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
+            self.optimizer.step()
+            self.optimizer.zero_grad(set_to_none=True)
+            self.step += 1
+            self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
+            progress.update(1)
+            if self.step % cfg.log_every == 0 or self.step == stop:
+                if self.dist.world_size > 1:
+                    dist.all_reduce(sums)
+                now = time.perf_counter()
+                elapsed = now - last_time
+                per_group = (sums[:, 0] / sums[:, 1].clamp(min=1)).tolist()
+                row = {"step": self.step, "tokens": self.tokens,
+                       "loss": float(sums[:, 0].sum() / sums[:, 1].sum()), "lr": lr, "grad_norm": float(grad_norm),
+                       "tokens_per_s": (self.tokens - last_tokens) / elapsed,
+                       "mfu": float(sums[:, 2].sum() / elapsed / peak),
+                       **{f"loss_{g}": (per_group[i] if sums[i, 1] else math.nan) for i, g in enumerate(groups)}}
+                if log is not None:
+                    log.write(row)
+                    progress.set_postfix(loss=f"{row['loss']:.4f}", tok_s=f"{row['tokens_per_s']:,.0f}",
+                                         mfu=f"{row['mfu']:.0%}")
+                sums.zero_()
+                last_time, last_tokens = time.perf_counter(), self.tokens
+            self._run_callbacks()
+            if self.step % cfg.checkpoint_every == 0 or self.step == stop:
+                last_dir = self.save()
+                last_time = time.perf_counter()  # checkpoint time is not training time
+        progress.close()
+        del batches  # shuts DataLoader workers down
+        if log is not None:
+            log.close()
+            print(f"step {self.step}: checkpoints under {self.out / 'checkpoints'}, log {log.path}"
+                  + (f", TensorBoard {self.out / 'tensorboard'}" if cfg.tensorboard else ""))
+        return last_dir if last_dir is not None else checkpoint_dir(self.out, self.step)
+
+    def _run_callbacks(self) -> None:
+        due = [fn for every, fn in self.callbacks if self.step % every == 0]
+        if not due or not self.dist.is_main:
+            return
+        self.model.eval()
+        with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
+            for fn in due:
+                fn(self.model, self.step)
+        self.model.train()
+
+
+def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = ()) -> Path:
+    """Run (or resume) a whole training run; under ``torchrun`` every rank calls this."""
+    try:
+        return Trainer(config, callbacks).run()
+    finally:
+        if dist.is_initialized():
+            dist.destroy_process_group()

@@ -1,0 +1,202 @@
+"""The training window loader: windows inside one history, sparsity, sampling weights, statistics, errors."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+
+import numpy as np
+import pytest
+import torch
+
+from vintix.data import LearningHistoryWriter, task_directory, write_task_metadata
+from vintix.train.data import (
+    TrainingDataError,
+    WindowBatches,
+    WindowDataset,
+    collate_windows,
+    load_training_data,
+)
+
+
+def write_history(path, episode_lengths, history_id, obs_dim=39, act_dim=4, offset=0.0):
+    """A history whose obs[:, 0] is the row index and obs[:, 1] the history id, so windows can be traced."""
+    n = sum(episode_lengths)
+    rows = np.arange(n, dtype=np.float32)
+    obs = np.zeros((n, obs_dim), np.float32) + offset
+    obs[:, 0], obs[:, 1] = rows, history_id
+    obs[:, 2:] += np.sin(rows[:, None] * np.arange(1, obs_dim - 1))
+    action = np.zeros((n, act_dim), np.float32)
+    action[:, 0] = rows
+    step_num = np.concatenate([np.arange(length) for length in episode_lengths])
+    with LearningHistoryWriter(path, obs_dim, act_dim, chunk_size=64) as writer:
+        writer.append(obs, action, rows / 10, step_num)
+
+
+def write_task(root, name, histories, obs_dim=39, act_dim=4, **metadata):
+    """histories: one list of episode lengths per history."""
+    folder = task_directory(root, "metaworld", name)
+    write_task_metadata(folder, name, obs_dim, act_dim, **metadata)
+    for i, lengths in enumerate(histories):
+        write_history(folder / f"history-{i:04d}.h5", lengths, history_id=i, obs_dim=obs_dim, act_dim=act_dim)
+    return folder
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    root = tmp_path / "data"
+    write_task(root, "reach-v3", [[20] * 10, [15] * 8], noise_free_fraction=0.25)
+    write_task(root, "push-v3", [[20] * 10] * 3)
+    return root
+
+
+def load(root, tmp_path, **kwargs):
+    return load_training_data(root, stats_cache_dir=tmp_path / "cache", **kwargs)
+
+
+def episode_of(step_num):
+    return np.cumsum(step_num == 0)
+
+
+def test_window_is_consecutive_rows_of_one_history_with_true_previous_action(dataset, tmp_path):
+    data = load(dataset, tmp_path)
+    windows = WindowDataset(data, window_len=30, seed=3)
+    mid_episode_starts = 0
+    for i in range(200):
+        w = windows[i]
+        obs, step = w["obs"], w["step_num"]
+        assert len(np.unique(obs[:, 1])) == 1, "one history per window"
+        assert np.array_equal(np.diff(obs[:, 0]), np.ones(29)), "consecutive rows"
+        rows = obs[:, 0]
+        # Targets are a_t; the previous action/reward are row t-1's, at the first token too.
+        assert np.array_equal(w["action"][:, 0], rows)
+        inside = step != 0
+        assert np.array_equal(w["prev_action"][inside, 0], rows[inside] - 1)
+        assert np.allclose(w["prev_reward"][inside], (rows[inside] - 1) / 10)
+        mid_episode_starts += bool(step[0] != 0)
+    assert mid_episode_starts > 100, "random offsets start most windows mid-episode"
+
+
+def test_every_start_offset_of_a_history_is_reachable(tmp_path):
+    root = tmp_path / "data"
+    write_task(root, "reach-v3", [[10] * 4])  # 40 rows, windows of 30: starts 0..10
+    windows = WindowDataset(load(root, tmp_path), window_len=30, seed=0)
+    starts = Counter(int(windows[i]["obs"][0, 0]) for i in range(300))
+    assert set(starts) == set(range(11))
+
+
+def test_sparsity_keeps_every_kth_episode(dataset, tmp_path):
+    windows = WindowDataset(load(dataset, tmp_path), window_len=40, sparsity=3, seed=0)
+    for i in range(50):
+        w = windows[i]
+        starts = np.flatnonzero(w["step_num"] == 0)
+        assert len(starts) >= 1
+        rows = w["obs"][:, 0]
+        jumps = np.flatnonzero(np.diff(rows) != 1)
+        assert np.array_equal(jumps + 1, starts[starts > 0]), "rows jump only at kept episode starts"
+        for j in jumps:
+            skipped = rows[j + 1] - rows[j] - 1
+            assert skipped in (2 * 20, 2 * 15), "two whole episodes skipped between kept ones"
+
+
+def test_stochastic_sparsity_draws_each_k_up_to_the_maximum(dataset, tmp_path):
+    windows = WindowDataset(load(dataset, tmp_path), window_len=40, sparsity=3, stochastic_sparsity=True, seed=0)
+    assert Counter(windows.locate(i)[4] for i in range(300)).keys() == {1, 2, 3}
+
+
+def test_tasks_are_sampled_uniformly_or_by_volume(dataset, tmp_path):
+    data = load(dataset, tmp_path)
+    steps = {t.name: t.steps for t in data.tasks}
+    assert steps == {"push-v3": 600, "reach-v3": 320}
+    for sampling, expected in (("uniform", 0.5), ("volume", 600 / 920)):
+        windows = WindowDataset(data, window_len=30, task_sampling=sampling, seed=1)
+        names = [data.tasks[windows.locate(i)[0]].name for i in range(3000)]
+        assert names.count("push-v3") / 3000 == pytest.approx(expected, abs=0.03)
+
+
+def test_same_index_same_window_and_ranks_never_share_windows(dataset, tmp_path):
+    data = load(dataset, tmp_path)
+    a, b = WindowDataset(data, 30, seed=5), WindowDataset(data, 30, seed=5)
+    assert all(np.array_equal(a[i]["obs"], b[i]["obs"]) for i in range(20))
+    assert not np.array_equal(a[0]["obs"], WindowDataset(data, 30, seed=6)[0]["obs"])
+    ranks = [WindowBatches(4, start_micro_batch=2, rank=r, world_size=2) for r in range(2)]
+    seen = [[i for _, batch in zip(range(5), iter(s)) for i in batch] for s in ranks]
+    assert not set(seen[0]) & set(seen[1])
+    assert sorted(seen[0] + seen[1]) == list(range(16, 56))
+
+
+def test_worker_processes_load_the_same_batches(dataset, tmp_path):
+    windows = WindowDataset(load(dataset, tmp_path), 30, seed=0)
+
+    def batches(workers):
+        loader = torch.utils.data.DataLoader(windows, batch_sampler=WindowBatches(3), collate_fn=collate_windows,
+                                             num_workers=workers)
+        return [b for _, b in zip(range(4), loader)]
+
+    for inline, forked in zip(batches(0), batches(2)):
+        assert inline.keys() == forked.keys() == {"metaworld"}
+        assert all(torch.equal(inline["metaworld"][k], forked["metaworld"][k]) for k in inline["metaworld"])
+
+
+def test_batches_mix_groups(tmp_path):
+    root = tmp_path / "data"
+    write_task(root, "reach-v3", [[20] * 5])
+    write_task(root, "Hopper-v5", [[25] * 4], obs_dim=11, act_dim=3)
+    data = load(root, tmp_path)
+    assert [(g.name, g.obs_dim, g.act_dim) for g in data.groups] == [("metaworld", 39, 4), ("mujoco-hopper", 11, 3)]
+    assert data.task_norms[0].reward_scale == 0.1 and data.tasks[0].name == "Hopper-v5"  # Hopper: from the registry (its JSON has none)
+    batch = collate_windows([WindowDataset(data, 30, seed=0)[i] for i in range(12)])
+    assert set(batch) == {"metaworld", "mujoco-hopper"}
+    assert batch["mujoco-hopper"]["obs"].shape[1:] == (30, 11) and batch["metaworld"]["action"].shape[1:] == (30, 4)
+
+
+def test_expert_distillation_reads_only_the_noise_free_tail(dataset, tmp_path):
+    data = load(dataset, tmp_path, expert_distillation=True, tasks=["reach-v3"])
+    windows = WindowDataset(data, window_len=30, seed=0)
+    # JSON noise_free_fraction 0.25: the episodes that start in the last quarter of each history:
+    # history 0 (episodes of 20, 200 rows) from row 160, history 1 (episodes of 15, 120 rows) from 90.
+    lowest = {0: 200, 1: 120}
+    for i in range(100):
+        obs = windows[i]["obs"]
+        lowest[int(obs[0, 1])] = min(lowest[int(obs[0, 1])], int(obs[0, 0]))
+    assert lowest == {0: 160, 1: 90}
+    with pytest.raises(TrainingDataError, match="noise_free_fraction"):
+        load(dataset, tmp_path, expert_distillation=True, tasks=["push-v3"])
+    half = load(dataset, tmp_path, expert_distillation=True, expert_tail_fraction=0.5, tasks=["push-v3"])
+    assert half.tasks[0].steps == 300
+
+
+def test_obs_statistics_stream_over_all_rows_and_are_cached_by_fingerprint(dataset, tmp_path):
+    data = load(dataset, tmp_path)
+    reach = data.tasks[[t.name for t in data.tasks].index("reach-v3")]
+    obs = np.concatenate([h.history.read(0, h.history.num_steps)["observation"] for h in reach.histories]).astype(np.float64)
+    assert np.allclose(reach.norm.obs_mean, obs.mean(axis=0)) and np.allclose(reach.norm.obs_std, obs.std(axis=0))
+    [cache] = (tmp_path / "cache").glob("reach-v3-*.json")
+    entry = json.loads(cache.read_text())
+    entry["obs_mean"] = [123.0] * 39
+    cache.write_text(json.dumps(entry))
+    assert load(dataset, tmp_path).tasks[1].norm.obs_mean[0] == 123.0, "unchanged files: the cache is used"
+    write_history(dataset / "metaworld" / "reach-v3" / "history-0001.h5", [15] * 8, history_id=1, offset=5.0)
+    fresh = load(dataset, tmp_path).tasks[1].norm.obs_mean
+    assert fresh[0] != 123.0 and fresh[5] == pytest.approx(obs.mean(axis=0)[5] + 5.0 * 120 / 320, abs=1e-4)
+
+
+def test_task_missing_from_the_registry_is_a_clear_error(tmp_path):
+    write_task(tmp_path / "data", "my-own-task", [[10] * 3])
+    with pytest.raises(TrainingDataError, match="'my-own-task' is not in the task registry"):
+        load(tmp_path / "data", tmp_path)
+
+
+def test_group_whose_tasks_disagree_on_dims_is_a_clear_error(tmp_path):
+    write_task(tmp_path / "data", "reach-v3", [[10] * 3])
+    write_task(tmp_path / "data", "push-v3", [[10] * 3], obs_dim=12)
+    with pytest.raises(TrainingDataError, match="group 'metaworld' mixes observation/action sizes"):
+        load(tmp_path / "data", tmp_path)
+
+
+def test_window_longer_than_every_history_is_a_clear_error(dataset, tmp_path):
+    data = load(dataset, tmp_path)
+    with pytest.raises(TrainingDataError, match="no history holds a window of 400 steps"):
+        WindowDataset(data, window_len=400)
+    with pytest.raises(TrainingDataError, match="sparsity 3"):
+        WindowDataset(data, window_len=100, sparsity=3)
