@@ -1,0 +1,21 @@
+"""Stage: many-shot in-context evaluation, normalized scores against the paper's or our references."""
+
+from vintix.evaluate.run import EvalConfig, evaluate, in_context_score, parse_variation, select_tasks, summarize
+from vintix.evaluate.scores import REFERENCE_TABLES, Reference, ReferenceScoreError, reference
+from vintix.evaluate.summary import best_k_plateau, iqm, iqm_with_ci
+
+__all__ = [
+    "REFERENCE_TABLES",
+    "EvalConfig",
+    "Reference",
+    "ReferenceScoreError",
+    "best_k_plateau",
+    "evaluate",
+    "in_context_score",
+    "iqm",
+    "iqm_with_ci",
+    "parse_variation",
+    "reference",
+    "select_tasks",
+    "summarize",
+]

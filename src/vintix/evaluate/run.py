@@ -1,0 +1,274 @@
+"""Many-shot in-context RL (paper §3, DESIGN §8): every (task, seed) run is one env, all stepped in
+lockstep through one batched `Agent`, from an empty context (cold start) or after a prompt taken
+from the start of a stored learning history.
+
+Protocol: env ``i`` of a task is ``make_env(task, seed=first_seed + i)``. A Meta-World env keeps one
+hidden goal for its life (drawn from its seed), so each seed is another goal to infer from reward
+across shots. Envs step together until every run has played ``shots`` episodes; a run that is done
+keeps stepping (its extra episodes are dropped) because the batch shares one KV-cache clock.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from rich.progress import Progress
+
+from vintix.agent import Agent
+from vintix.atomic import atomic_write_text
+from vintix.data.hdf5 import LearningHistory, find_tasks
+from vintix.errors import UnknownTaskError, VintixError
+from vintix.evaluate.scores import Reference, missing_reference_note, reference
+from vintix.evaluate.summary import best_k_plateau
+from vintix.model.model import Vintix
+from vintix.tasks import DOMAINS, TaskSpec, get_task, make_env, resolve_tasks
+
+EPISODES_FILE = "episodes.csv"
+RUN_FILE = "run.json"
+GOAL_PROTOCOL = "one hidden goal per env for its life, drawn from the env seed (ML45 meta-RL protocol)"
+
+
+@dataclass
+class EvalConfig:
+    """What `vintix eval` runs."""
+
+    tasks: list[str] = field(default_factory=lambda: ["reach-v3"])
+    """task names, domains or splits ('train', 'test'); domains and splits keep the tasks whose group
+    the checkpoint has"""
+    shots: int = 50
+    """episodes per run"""
+    seeds: int = 3
+    """runs per task; run i's env is seeded first_seed + i (Meta-World: its own hidden goal)"""
+    first_seed: int = 0
+    """env seed of the first run"""
+    variation: dict[str, float] = field(default_factory=dict)
+    """physics variation of every env, e.g. {'viscosity': 0.05} (MuJoCo held-out evaluation)"""
+    prompt_from: Path | None = None
+    """dataset root: prompt run i with the first prompt_steps steps of its task's history i (mod count)"""
+    prompt_steps: int | None = None
+    """prompt length in steps (default: half the model's window)"""
+    batch_envs: int = 64
+    """most envs stepped through one agent at once (the KV cache grows with it)"""
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One finished episode of one run."""
+
+    episode_return: float
+    length: int
+    success: float | None
+    """Meta-World's success flag (1 if reached at any step); None for envs without one"""
+
+
+def parse_variation(items: Sequence[str]) -> dict[str, float]:
+    """``["viscosity=0.05", "gravity_scale=1.1"]`` -> ``{"viscosity": 0.05, "gravity_scale": 1.1}``."""
+    variation = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        try:
+            variation[name.strip()] = float(value)
+        except ValueError:
+            raise VintixError(f"variation {item!r} is not NAME=NUMBER, e.g. viscosity=0.05 or gravity_scale=1.1") from None
+    return variation
+
+
+def select_tasks(selectors: Sequence[str], groups: Sequence[str]) -> tuple[list[TaskSpec], list[str]]:
+    """Tasks to evaluate and notes on the ones skipped: a domain or split keeps the tasks of the
+    checkpoint's groups; a task named explicitly whose group the checkpoint lacks is an error."""
+    selectors = [s for selector in selectors for s in selector.split(",") if s]
+    named = {get_task(s).name for s in selectors if s not in DOMAINS and s not in ("train", "test")}
+    kept, skipped = [], []
+    for spec in resolve_tasks(selectors):
+        if spec.group in groups:
+            kept.append(spec)
+        elif spec.name in named:
+            raise UnknownTaskError(
+                f"task {spec.name!r} is in group {spec.group!r}, which the checkpoint has no encoder for "
+                f"(it has {', '.join(sorted(groups))})"
+            )
+        else:
+            skipped.append(spec.name)
+    notes = [f"skipped {len(skipped)} selected task(s) whose group the checkpoint lacks: {', '.join(skipped)}"] if skipped else []
+    if not kept:
+        raise UnknownTaskError(f"none of {selectors} is a task of the checkpoint's groups ({', '.join(sorted(groups))})")
+    return kept, notes
+
+
+def load_prompt(root: Path, task: str, index: int, steps: int) -> dict[str, np.ndarray]:
+    """The first `steps` rows of history `index` (mod the count) of `task` in the dataset at `root`."""
+    name = get_task(task).name
+    matches = [t for t in find_tasks(root) if _canonical(t.task_name) == name]
+    if not matches or not matches[0].history_paths:
+        raise VintixError(f"{root} has no learning history of {name}: cannot prompt it; collect some or drop --prompt-from")
+    paths = matches[0].history_paths
+    with LearningHistory(paths[index % len(paths)]) as history:
+        if history.num_steps < steps:
+            raise VintixError(f"{history.path} has {history.num_steps} steps, fewer than the prompt's {steps}")
+        return history.read(0, steps)
+
+
+def _canonical(task: str) -> str | None:
+    try:
+        return get_task(task).name
+    except UnknownTaskError:
+        return None
+
+
+def play_shots(agent: Agent, envs: Sequence[Any], shots: int, progress: Progress | None = None) -> list[list[Episode]]:
+    """Step `envs` (the agent already reset for them) until each has finished `shots` episodes."""
+    n = len(envs)
+    observations = [env.reset()[0] for env in envs]
+    rewards, starts = np.zeros(n), np.ones(n, dtype=bool)
+    returns, lengths = np.zeros(n), np.zeros(n, dtype=int)
+    success: list[float | None] = [None] * n
+    episodes: list[list[Episode]] = [[] for _ in envs]
+    bar = progress.add_task("episodes", total=n * shots) if progress else None
+    while min(len(e) for e in episodes) < shots:
+        actions = agent.act(observations, rewards, starts)
+        for i, env in enumerate(envs):
+            observation, reward, terminated, truncated, info = env.step(actions[i])
+            returns[i] += reward
+            lengths[i] += 1
+            if "success" in info:
+                success[i] = max(success[i] or 0.0, float(info["success"]))
+            if terminated or truncated:
+                if len(episodes[i]) < shots:
+                    episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i]))
+                    if progress is not None and bar is not None:
+                        progress.advance(bar)
+                observation, _ = env.reset()
+                returns[i], lengths[i], success[i], rewards[i], starts[i] = 0.0, 0, None, 0.0, True
+            else:
+                rewards[i], starts[i] = reward, False
+            observations[i] = observation
+    return episodes
+
+
+def run_episodes(
+    agent: Agent, config: EvalConfig, specs: Sequence[TaskSpec], progress: Progress | None = None
+) -> list[dict[str, Any]]:
+    """Every (task, seed) run of `config` for `specs`: one result row per episode."""
+    runs = [(spec, config.first_seed + i) for spec in specs for i in range(config.seeds)]
+    prompt_steps = config.prompt_steps or agent.model.config.context_len // 2
+    variation = ",".join(f"{k}={v:g}" for k, v in sorted(config.variation.items()))
+    rows = []
+    for start in range(0, len(runs), config.batch_envs):
+        batch = runs[start : start + config.batch_envs]
+        envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
+        try:
+            agent.reset([spec.name for spec, _ in batch], [env.action_space for env in envs])
+            if config.prompt_from is not None:
+                prompts = [load_prompt(config.prompt_from, spec.name, seed, prompt_steps) for spec, seed in batch]
+                agent.prompt(*([p[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
+            results = play_shots(agent, envs, config.shots, progress)
+        finally:
+            for env in envs:
+                env.close()
+        for (spec, seed), task, episodes in zip(batch, agent.tasks, results):
+            rows += [
+                {"task": spec.name, "domain": spec.domain, "split": spec.split, "group": spec.group, "seed": seed,
+                 "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
+                 "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
+                 "success": "" if e.success is None else e.success}
+                for shot, e in enumerate(episodes)
+            ]
+    return rows
+
+
+def references(tasks: Sequence[str]) -> tuple[dict[str, dict[str, Reference | None]], list[str]]:
+    """Both tables' references of `tasks` (checked before any env runs: expert ≤ random raises),
+    and a note for each task a table lacks."""
+    found = {table: {task: reference(task, table) for task in tasks} for table in ("paper", "ours")}
+    missing = {table: [task for task, ref in refs.items() if ref is None] for table, refs in found.items()}
+    notes = [missing_reference_note(tasks, table) for table, tasks in missing.items() if tasks]
+    return found, notes
+
+
+def add_normalized_scores(rows: list[dict[str, Any]], refs: dict[str, dict[str, Reference | None]]) -> None:
+    """Add `normalized_<table>` to every row (empty where the table lacks the task)."""
+    for row in rows:
+        for table, by_task in refs.items():
+            ref = by_task[row["task"]]
+            row[f"normalized_{table}"] = "" if ref is None else float(ref.normalize(row["return"]))
+
+
+def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) -> tuple[Path, Path]:
+    """`episodes.csv` (one row per episode) and `run.json` (how it was run) under `out`, atomically."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_text(out / EPISODES_FILE, buffer.getvalue())
+    atomic_write_text(out / RUN_FILE, json.dumps(run, indent=1, default=str) + "\n")
+    return out / EPISODES_FILE, out / RUN_FILE
+
+
+def evaluate(
+    agent: Agent, config: EvalConfig, out: Path | None = None, checkpoint: str = "", label: str | None = None,
+    progress: Progress | None = None,
+) -> tuple[list[dict[str, Any]], list[str]]:
+    """Run `config` with `agent`; write the results under `out` if given. Returns the episode rows
+    and notes (skipped tasks, missing references) for the user."""
+    specs, notes = select_tasks(config.tasks, list(agent.model.groups))
+    refs, missing = references([s.name for s in specs])
+    started = time.time()
+    rows = run_episodes(agent, config, specs, progress)
+    add_normalized_scores(rows, refs)
+    if out is not None:
+        model = agent.model
+        write_results(out, rows, {
+            "label": label or Path(checkpoint).name or "model",
+            "checkpoint": checkpoint,
+            "model_config": asdict(model.config),
+            "config": asdict(config),
+            "goal_protocol": GOAL_PROTOCOL,
+            "references": {table: {task: None if ref is None else asdict(ref) for task, ref in by_task.items()}
+                           for table, by_task in refs.items()},
+            "seconds": round(time.time() - started, 1),
+            "torch": torch.__version__,
+        })
+    return rows, notes + missing
+
+
+def summarize(rows: Sequence[dict[str, Any]], table: str = "paper", plateau_shots: int = 10) -> list[dict[str, Any]]:
+    """Per task and variation: mean normalized score at the first and last shot and its best
+    `plateau_shots`-shot plateau (means over seeds), beside the paper's Vintix score."""
+    by_task: dict[tuple[str, str], dict[int, list[float]]] = {}
+    for row in rows:
+        if row[f"normalized_{table}"] == "":
+            continue
+        by_task.setdefault((row["task"], row["variation"]), {}).setdefault(int(row["shot"]), []).append(
+            float(row[f"normalized_{table}"]))
+    summary = []
+    for (task, variation), shots in sorted(by_task.items()):
+        curve = np.array([np.mean(shots[s]) for s in sorted(shots)])
+        plateau, at = best_k_plateau(curve, plateau_shots)
+        summary.append({"task": task, "variation": variation, "runs": len(shots[min(shots)]), "first": curve[0],
+                        "last": curve[-1], "plateau": plateau, "plateau_from": at + 1,
+                        "paper_vintix": get_task(task).paper_vintix_normalized.mean})
+    return summary
+
+
+def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 6, seeds: int = 2, first_seed: int = 1000) -> float:
+    """Periodic training callback (DESIGN §6): mean normalized score (paper table) over the last half
+    of `shots` cold-start shots on `tasks`, `seeds` runs each. Use held-out tasks or goals (a
+    `first_seed` no training history used) so that the best checkpoint is the best *in context*."""
+    was_training = model.training
+    model.eval()
+    try:
+        config = EvalConfig(tasks=list(tasks), shots=shots, seeds=seeds, first_seed=first_seed)
+        rows, _ = evaluate(Agent(model), config)
+    finally:
+        model.train(was_training)
+    late = [float(r["normalized_paper"]) for r in rows if r["shot"] > shots // 2]
+    return float(np.mean(late))
