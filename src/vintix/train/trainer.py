@@ -108,7 +108,7 @@ def flops_per_token(model: Vintix, group: str, window_len: int) -> float:
     return 6.0 * used + 12.0 * config.n_layers * config.d_model * window_len
 
 
-def measure_matmul_flops(device: torch.device, dtype: torch.dtype = torch.float32, size: int = 2048,
+def measure_matmul_flops(device: torch.device, dtype: torch.dtype = torch.float32, size: int = 1024,
                          repeats: int = 5) -> float:
     """This device's dense matmul rate (FLOP/s, best of ``repeats``): the peak that MFU is relative to."""
     a = torch.randn(size, size, device=device, dtype=dtype)
