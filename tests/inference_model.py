@@ -3,9 +3,11 @@ from short uniform-random rollouts of the real envs (what a trainer computes fro
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from functools import cache
 
 import numpy as np
+import pytest
 import torch
 
 from conftest import rollout
@@ -48,3 +50,21 @@ def random_inputs(model: Vintix, group: str, batch: int, steps: int, episode: in
         prev_reward=g.uniform(0, 2, size=(batch, steps)).astype(np.float32),
         step_num=np.broadcast_to(np.arange(steps) % episode, (batch, steps)).copy(),
     )
+
+
+@contextmanager
+def one_thread():
+    """Tiny models cost per-op overhead, not FLOPs; with the 2 cores shared by other jobs a second
+    intra-op thread only spins (measured: a 300-step eval took 11.4 s on 2 threads, 1.4 s on 1)."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+@pytest.fixture(autouse=True)
+def one_torch_thread():
+    with one_thread():
+        yield

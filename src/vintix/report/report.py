@@ -140,6 +140,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     loaded = [load_results(Path(folder), table) for folder in folders]
     results = [r for r, _ in loaded]
     notes = [n for _, ns in loaded for n in ns]
+    if not any(r.scores for r in results):
+        raise VintixError(f"no task of {', '.join(map(str, folders))} has a '{table}' reference score to normalize "
+                          f"with: {' '.join(notes)}")
     labels = [r.label for r in results]
     if len(set(labels)) < len(labels):  # the same checkpoint evaluated twice: tell them apart
         for r in results:

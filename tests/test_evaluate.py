@@ -1,0 +1,101 @@
+"""Evaluation: a real cold-start eval through the CLI, normalization edge cases, task selection,
+prompts, the training callback, and clear errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from inference_model import one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
+from vintix.agent import Agent
+from vintix.cli import app
+from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.errors import UnknownTaskError, VintixError
+from vintix.evaluate import (
+    EvalConfig,
+    Reference,
+    ReferenceScoreError,
+    evaluate,
+    in_context_score,
+    parse_variation,
+    reference,
+    select_tasks,
+)
+from vintix.model import save_pretrained
+
+
+def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks",
+                                      "reach-v3,InvertedPendulum-v5", "--shots", "2", "--seeds", "2",
+                                      "--out", str(tmp_path / "results")])
+    assert result.exit_code == 0, result.output
+    assert "wrote 8 episodes" in result.output and "no 'ours' reference score" in result.output
+    rows = list(csv.DictReader((tmp_path / "results" / "episodes.csv").open()))
+    assert sorted({(r["task"], r["seed"], r["shot"]) for r in rows}) == sorted(
+        (t, s, k) for t in ("reach-v3", "InvertedPendulum-v5") for s in "01" for k in "12")
+    for row in rows:
+        ref = reference(row["task"])
+        assert float(row["normalized_paper"]) == pytest.approx((float(row["return"]) - ref.random) / (ref.expert - ref.random))
+        assert row["normalized_ours"] == ""  # no measured demonstrator score for these tasks here
+    reach = [r for r in rows if r["task"] == "reach-v3"]
+    assert {r["length"] for r in reach} == {"100"} and {r["success"] for r in reach} <= {"0.0", "1.0"}
+    # different seeds are different hidden goals, so different returns
+    assert len({r["return"] for r in reach if r["shot"] == "1"}) == 2
+    run = json.loads((tmp_path / "results" / "run.json").read_text())
+    assert run["label"] == "ckpt" and "one hidden goal" in run["goal_protocol"]
+
+
+def test_normalization_formula_and_expert_not_above_random_raises():
+    ref = Reference(random=10.0, expert=110.0, provenance="test")
+    np.testing.assert_allclose(ref.normalize([10.0, 60.0, 110.0, 160.0]), [0.0, 0.5, 1.0, 1.5])
+    for expert in (10.0, 5.0):
+        with pytest.raises(ReferenceScoreError, match="not above random"):
+            Reference(random=10.0, expert=expert, provenance="test")
+    with pytest.raises(ValueError, match="unknown reference table"):
+        reference("reach-v3", "jat")
+
+
+def test_domains_and_splits_keep_the_checkpoints_groups_but_a_named_foreign_task_is_an_error():
+    specs, notes = select_tasks(["metaworld,InvertedPendulum-v5"], ["metaworld", "mujoco-invertedpendulum"])
+    assert len(specs) == 51 and not notes
+    specs, notes = select_tasks(["test"], ["metaworld"])  # held-out: ML45 test tasks of the checkpoint's group
+    assert sorted(s.name for s in specs) == ["bin-picking-v3", "box-close-v3", "door-lock-v3", "door-unlock-v3",
+                                             "hand-insert-v3"]
+    assert "industrial-benchmark-80-v1" in notes[0]
+    with pytest.raises(UnknownTaskError, match="industrial_benchmark"):
+        select_tasks(["reach-v3", "industrial-benchmark-90-v1"], ["metaworld"])
+    with pytest.raises(UnknownTaskError, match="reach"):
+        select_tasks(["reach-v9"], ["metaworld"])
+
+
+def test_a_variation_only_applies_where_the_env_has_it():
+    assert parse_variation(["viscosity=0.05", "gravity_scale=1.1"]) == {"viscosity": 0.05, "gravity_scale": 1.1}
+    with pytest.raises(VintixError, match="NAME=NUMBER"):
+        parse_variation(["viscosity"])
+    agent = Agent(tiny_model())
+    rows, _ = evaluate(agent, EvalConfig(tasks=["InvertedPendulum-v5"], shots=1, seeds=1, variation={"viscosity": 0.1}))
+    assert rows[0]["variation"] == "viscosity=0.1"
+    with pytest.raises(VintixError, match="viscosity"):
+        evaluate(agent, EvalConfig(tasks=["reach-v3"], shots=1, seeds=1, variation={"viscosity": 0.1}))
+
+
+def test_a_prompted_run_starts_after_the_stored_steps(tmp_path):
+    collect([CollectionPlan("reach-v3", 2, 300, NoiseSchedule(1.0, 0.05), 0, 2)], tmp_path / "data")
+    agent = Agent(tiny_model())
+    config = EvalConfig(tasks=["reach-v3"], shots=1, seeds=2, prompt_from=tmp_path / "data", prompt_steps=12)
+    rows, _ = evaluate(agent, config)
+    assert [r["prompt_steps"] for r in rows] == [12, 12]
+    assert agent.steps == 12 + 100  # the prompt, then one 100-step episode
+    with pytest.raises(VintixError, match="no learning history of push-v3"):
+        evaluate(agent, EvalConfig(tasks=["push-v3"], shots=1, seeds=1, prompt_from=tmp_path / "data"))
+
+
+def test_in_context_score_is_a_training_callback_that_restores_train_mode():
+    model = tiny_model().train()
+    score = in_context_score(model, ["InvertedPendulum-v5"], shots=2, seeds=2)
+    assert model.training and np.isfinite(score) and -1.0 < score < 1.0
