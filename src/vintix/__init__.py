@@ -3,4 +3,13 @@
 from vintix.tasks import get_task, list_tasks, make_env
 
 __version__ = "0.1.0"
-__all__ = ["get_task", "list_tasks", "make_env"]
+__all__ = ["Agent", "get_task", "list_tasks", "make_env"]
+
+
+def __getattr__(name: str) -> object:
+    # `vintix.Agent` on first use: importing the package (every CLI command does) stays free of torch.
+    if name == "Agent":
+        from vintix.agent import Agent
+
+        return Agent
+    raise AttributeError(f"module 'vintix' has no attribute {name!r}")

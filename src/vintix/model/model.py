@@ -12,7 +12,7 @@ encoders and heads, the model, parameter counting.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -165,6 +165,10 @@ def attention(
     return F.scaled_dot_product_attention(q, k, v, attn_mask=bias.to(q.dtype), dropout_p=dropout_p)
 
 
+# A KV cache's per-layer hook: new tokens' (k, v) in, the attended window's (k, v) out.
+KVUpdate = Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+
+
 class SelfAttention(nn.Module):
     """Multi-head self-attention with one packed qkv projection and qk-LayerNorm.
 
@@ -192,9 +196,13 @@ class SelfAttention(nn.Module):
         k = self.k_norm(k).to(v.dtype)
         return q.transpose(1, 2), k.transpose(1, 2), v.transpose(1, 2)
 
-    def forward(self, x: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, bias: torch.Tensor, kv_cache: KVUpdate | None = None) -> torch.Tensor:
+        """``kv_cache`` (inference): stores the new tokens' k, v and returns the k, v of every token the
+        queries attend to; ``bias`` then spans those keys (see `vintix.agent.KVCache`)."""
         B, T, D = x.shape
         q, k, v = self.project_qkv(x)
+        if kv_cache is not None:
+            k, v = kv_cache(k, v)
         y = attention(q, k, v, bias, self.dropout if self.training else 0.0)
         return self.proj(y.transpose(1, 2).reshape(B, T, D))
 
@@ -222,8 +230,8 @@ class Block(nn.Module):
         self.mlp = MLP(config)
         self.drop = nn.Dropout(config.dropout)
 
-    def forward(self, x: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
-        x = x + self.drop(self.attn(self.ln_1(x), bias))
+    def forward(self, x: torch.Tensor, bias: torch.Tensor, kv_cache: KVUpdate | None = None) -> torch.Tensor:
+        x = x + self.drop(self.attn(self.ln_1(x), bias, kv_cache))
         return x + self.drop(self.mlp(self.ln_2(x)))
 
 
