@@ -9,7 +9,7 @@ import torch
 from gymnasium.spaces import Box
 
 import vintix
-from inference_model import random_inputs, tiny_model
+from inference_model import one_torch_thread, random_inputs, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent, AgentInputError
 from vintix.errors import UnknownTaskError
 from vintix.model import save_pretrained

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import torch
 
-from inference_model import tiny_model
+from inference_model import one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import KVCache, banded_forward, cached_backbone
 
 WINDOW = 16
