@@ -28,7 +28,7 @@ from vintix.atomic import atomic_write_text
 from vintix.data.hdf5 import LearningHistory, TaskData, find_tasks
 from vintix.errors import DatasetError, UnknownTaskError, VintixError
 from vintix.model.model import GroupSpec, TaskNorm
-from vintix.tasks import get_task, resolve_tasks
+from vintix.tasks import TaskSpec, get_task, resolve_tasks
 
 TaskSampling = Literal["uniform", "volume"]
 Window = dict[str, np.ndarray | int | str]
@@ -279,7 +279,7 @@ def _registry_name(task: TaskData) -> str | None:
         return None
 
 
-def _registry_spec(task: TaskData):  # -> TaskSpec
+def _registry_spec(task: TaskData) -> TaskSpec:
     try:
         spec = get_task(task.task_name)
     except UnknownTaskError as error:
@@ -351,9 +351,10 @@ class WindowDataset(torch.utils.data.Dataset):
         task = self.data.tasks[t]
         history = task.histories[h]
         parts: dict[str, list[np.ndarray]] = {key: [] for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
-        for lo, hi in history.segments(e, offset, self.window_len, k):
-            # Mid-episode start: read one row earlier for the true previous action/reward.
-            first = lo - 1 if lo > history.bounds[e] else lo
+        for n, (lo, hi) in enumerate(history.segments(e, offset, self.window_len, k)):
+            # Only the first segment can start mid-episode; then read one row earlier for the true
+            # previous action/reward. Later segments start episodes, where the model pads.
+            first = lo - 1 if n == 0 and offset > 0 else lo
             rows = history.history.read(first, hi)
             skip = lo - first
             act, rew = rows["action"], rows["reward"]
