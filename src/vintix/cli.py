@@ -290,5 +290,161 @@ def data_plot(
     console.print(f"wrote {len(written)} figures under {out} (normalized by the paper's random/expert scores)")
 
 
+@app.command("train")
+def train_command(
+    config: Annotated[str, typer.Option(help="model preset (tiny, small, paper) or a YAML file of TrainConfig fields")] = "tiny",
+    data: Annotated[Optional[Path], typer.Option(help="dataset root (overrides the config)")] = None,
+    out: Annotated[Optional[Path], typer.Option(help="run directory; re-running the same command resumes")] = None,
+    settings: Annotated[Optional[list[str]], typer.Option(
+        "--set", metavar="FIELD=VALUE", help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
+) -> None:
+    """Train (or resume) a model by Algorithm Distillation. Many GPUs: torchrun --nproc-per-node N -m vintix.train (same options)."""
+    from vintix.train import load_config, train
+
+    try:
+        train(load_config(config, {"data": data and str(data), "out": out and str(out)}, settings))
+    except VintixError as error:
+        raise _fail(error)
+
+
+@bench_app.command("train")
+def bench_train(
+    presets: Annotated[Optional[list[str]], typer.Argument(metavar="[PRESETS]...", help="model presets (default: tiny small)")] = None,
+    batch_size: Annotated[int, typer.Option(help="windows per step")] = 4,
+    steps: Annotated[int, typer.Option(help="timed steps per preset (after one warm-up step)")] = 3,
+    device: Annotated[str, typer.Option(help="cpu or cuda")] = "cpu",
+) -> None:
+    """Training tokens/s and MFU per preset, MFU against this device's matmul rate measured in the same run."""
+    import os
+
+    import torch
+
+    from vintix.train.bench import benchmark_training, parameter_count
+
+    peak, results = benchmark_training(presets or ["tiny", "small"], batch_size, steps, torch.device(device))
+    table = Table(title=f"training speed on {device} ({torch.get_num_threads()} threads, load average "
+                        f"{os.getloadavg()[0]:.2f}); matmul peak {peak / 1e9:,.1f} GFLOP/s")
+    for column in ("preset", "parameters", "window", "batch", "tokens/s", "MFU"):
+        table.add_column(column, justify="left" if column == "preset" else "right")
+    for r in results:
+        table.add_row(r.preset, f"{r.parameters / 1e6:.2f}M", str(r.window_len), str(r.batch_size),
+                      f"{r.tokens_per_s:,.0f}", f"{r.mfu:.1%}")
+    console.print(table)
+    console.print("parameters: one encoder/head per group of all 102 registry tasks; paper preset "
+                  f"{parameter_count('paper'):,} (paper: 332,100,768)")
+
+
+@bench_app.command("infer")
+def bench_infer(
+    presets: Annotated[Optional[list[str]], typer.Argument(metavar="[PRESETS]...", help="model presets (default: tiny small paper)")] = None,
+    envs: Annotated[Optional[list[int]], typer.Option(help="batch sizes (default: 1 and 16)")] = None,
+    repeats: Annotated[int, typer.Option(help="timed cached steps per measurement (median)")] = 20,
+    recompute: Annotated[bool, typer.Option(help="also time a full-window recompute (minutes at the paper's size)")] = True,
+    threads: Annotated[Optional[int], typer.Option(help="torch intra-op threads (default: torch's)")] = None,
+) -> None:
+    """Agent step latency and throughput: KV cache (first-full vs steady) vs full-window recompute."""
+    import os
+
+    import torch
+
+    from vintix.agent.bench import literal_steady_state, memory_needed, time_inference
+
+    if threads:
+        torch.set_num_threads(threads)
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    table = Table(title=f"agent step on cpu, fp32, window full ({torch.get_num_threads()} threads; load average at "
+                        f"start {os.getloadavg()[0]:.2f}); cache states set directly, see vintix/agent/bench.py")
+    for column in ("preset", "params", "window", "envs", "first-full ms", "steady ms", "steady/first",
+                   "recompute ms", "cache speedup", "env-steps/s"):
+        table.add_column(column, justify="left" if column == "preset" else "right")
+    notes = []
+    for name in presets or ["tiny", "small", "paper"]:
+        for batch in envs or [1, 16]:
+            cache_bytes, recompute_bytes = memory_needed(name, batch)
+            if cache_bytes > memory / 2:
+                notes.append(f"{name} × {batch} envs skipped: its KV cache needs {cache_bytes / 2**30:.1f} GiB "
+                             f"of this machine's {memory / 2**30:.0f} GiB")
+                continue
+            timing = time_inference(name, batch, repeats if name != "paper" else max(3, repeats // 4),
+                                    (1 if name == "paper" else 3) if recompute and recompute_bytes < memory / 2 else 0)
+            speedup = timing.cache_speedup
+            table.add_row(name, f"{timing.parameters / 1e6:.1f}M", str(timing.window), str(batch),
+                          f"{timing.first_full_ms:.2f}", f"{timing.steady_ms:.2f}", f"{timing.steady_over_first_full:.2f}",
+                          "—" if timing.recompute_ms is None else f"{timing.recompute_ms:,.0f}",
+                          "—" if speedup is None else f"{speedup:,.0f}×", f"{timing.env_steps_per_second:,.0f}")
+    console.print(table)
+    for note in notes:
+        console.print(f"note: {note}")
+    filling, steady = literal_steady_state("tiny")
+    console.print(f"literal run check (tiny, 1 env, 4096 real steps): median step {filling:.2f} ms around the step "
+                  f"that fills the window, {steady:.2f} ms over the last 1024 steps; load average now "
+                  f"{os.getloadavg()[0]:.2f}")
+
+
+@app.command("eval")
+def eval_command(
+    checkpoint: Annotated[Path, typer.Option(help="checkpoint directory (model.json + model.safetensors)")],
+    tasks: Annotated[list[str], typer.Option(help="task names, domains or splits (train/test); repeat or comma-separate")],
+    out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
+    shots: Annotated[int, typer.Option(help="episodes per run")] = 50,
+    seeds: Annotated[int, typer.Option(help="runs per task (Meta-World: one hidden goal each)")] = 3,
+    first_seed: Annotated[int, typer.Option(help="env seed of the first run")] = 0,
+    variation: Annotated[Optional[list[str]], typer.Option(help="MuJoCo physics variation NAME=VALUE, e.g. viscosity=0.05")] = None,
+    prompt_from: Annotated[Optional[Path], typer.Option(help="dataset root: prompt with the start of a stored history")] = None,
+    prompt_steps: Annotated[Optional[int], typer.Option(help="prompt length (default: half the window)")] = None,
+    reference: Annotated[str, typer.Option(help="reference table of the printed summary: paper or ours")] = "paper",
+    label: Annotated[Optional[str], typer.Option(help="name of this model in reports (default: checkpoint folder)")] = None,
+    batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
+    device: str = "cpu",
+) -> None:
+    """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
+    from rich.progress import Progress
+
+    from vintix.agent import Agent
+    from vintix.evaluate import EvalConfig, evaluate, parse_variation, summarize
+
+    try:
+        config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
+                            variation=parse_variation(variation or []), prompt_from=prompt_from,
+                            prompt_steps=prompt_steps, batch_envs=batch_envs)
+        agent = Agent.from_pretrained(checkpoint, device)
+        with Progress(console=console) as progress:
+            rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress)
+        summary = summarize(rows, reference)
+    except (VintixError, ValueError) as error:
+        raise _fail(error)
+    for note in notes:
+        console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+    table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task")
+    for column in ("task", "variation", "shot 1", f"shot {shots}", f"best {min(10, shots)}-shot plateau", "from shot",
+                   "paper Vintix"):
+        table.add_column(column, justify="left" if column in ("task", "variation") else "right")
+    for s in summary:
+        table.add_row(s["task"], s["variation"] or "—", f"{s['first']:.2f}", f"{s['last']:.2f}", f"{s['plateau']:.2f}",
+                      str(s["plateau_from"]), f"{s['paper_vintix']:.2f}")
+    console.print(table)
+    console.print(f"wrote {len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}")
+
+
+@app.command("report")
+def report_command(
+    results: Annotated[list[Path], typer.Argument(help="`vintix eval` output folders (several: compared side by side)")],
+    out: Annotated[Path, typer.Option(help="folder for report.md and figures/")] = Path("report"),
+    reference: Annotated[str, typer.Option(help="reference table: paper or ours")] = "paper",
+    plateau_shots: Annotated[int, typer.Option(help="k of the best-k-shot plateau (converged score)")] = 10,
+) -> None:
+    """Markdown report with PNG figures: score vs shot per task and domain, converged vs the paper's."""
+    from vintix.report import write_report
+
+    try:
+        path, notes = write_report(results, out, reference, plateau_shots)
+    except (VintixError, ValueError) as error:
+        raise _fail(error)
+    for note in notes:
+        console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+    figures = sorted((out / "figures").rglob("*.png"))
+    console.print(f"wrote {path} and {len(figures)} figures under {out / 'figures'}")
+
+
 if __name__ == "__main__":
     app()
