@@ -7,7 +7,7 @@ import pytest
 from scipy.stats import spearmanr
 
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
-from vintix.data import LearningHistory, validate_dataset
+from vintix.data import LearningHistory, read_task_metadata, validate_dataset
 from vintix.demonstrators import ScriptedMetaWorldDemonstrator
 
 PLAN = CollectionPlan("reach-v3", histories=3, steps=300, envs_per_batch=2)
@@ -38,6 +38,8 @@ def test_history_rises_from_random_to_expert(tmp_path):
 def test_histories_follow_the_format_and_the_episode_structure(tmp_path):
     summaries = collect(PLAN, tmp_path)
     assert validate_dataset(tmp_path) == []
+    meta = read_task_metadata(tmp_path / "metaworld" / "reach-v3")
+    assert meta["noise_free_fraction"] == PLAN.schedule.noise_free_fraction  # expert distillation reads it
     for summary in summaries:
         with LearningHistory(summary.path) as history:
             assert history.num_steps == 300

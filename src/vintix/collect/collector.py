@@ -134,8 +134,10 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
             raise ValueError(f"{plan.task}: need histories and steps >= 1, got {plan.histories} and {plan.steps}")
         if demonstrator is None:
             load_demonstrator(spec.name)  # fail before writing anything for a task without one
+        # The noise-free tail fraction tells expert distillation (a training ablation) which rows to keep.
         write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
-                            domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale)
+                            domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale,
+                            noise_free_fraction=plan.schedule.noise_free_fraction)
         jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)
                  if not all(history_path(root, spec, i).exists() for i in indices)]
     if workers > 1 and len(jobs) > 1:
