@@ -213,6 +213,14 @@ def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) ->
     return out / EPISODES_FILE, out / RUN_FILE
 
 
+def default_label(checkpoint: str) -> str:
+    """A short name for a checkpoint in reports: its folder, or 'run/step-N' for a training checkpoint."""
+    path = Path(checkpoint)
+    if path.parent.name == "checkpoints":
+        return f"{path.parent.parent.name}/{path.name}"
+    return path.name or "model"
+
+
 def evaluate(
     agent: Agent, config: EvalConfig, out: Path | None = None, checkpoint: str = "", label: str | None = None,
     progress: Progress | None = None,
@@ -227,7 +235,7 @@ def evaluate(
     if out is not None:
         model = agent.model
         write_results(out, rows, {
-            "label": label or Path(checkpoint).name or "model",
+            "label": label or default_label(checkpoint),
             "checkpoint": checkpoint,
             "model_config": asdict(model.config),
             "config": asdict(config),
