@@ -83,14 +83,15 @@ def _monitored_env(task: str, options: dict[str, Any]) -> gym.Env:
     return Monitor(make_env(task, **options))
 
 
-def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0,
-                       out: Path | None = None, progress_bar: bool = True) -> Path:
-    """Train the demonstrator of `task`'s group by its recipe and save it (default: into the package).
+def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, out: Path | None = None,
+                       progress_bar: bool = True, recipe: DemonstratorRecipe | None = None) -> Path:
+    """Train the demonstrator of `task`'s group and save it (default: into the package).
 
-    Returns the weights file. `timesteps` overrides the recipe's budget (e.g. for a quick check).
+    Returns the weights file. `timesteps` overrides the budget (e.g. for a quick check); `recipe`
+    replaces the group's recipe (to try other hyperparameters).
     """
     spec = get_task(task)
-    recipe = recipe_for(task)
+    recipe = recipe or recipe_for(task)
     budget = timesteps or recipe.timesteps
     tasks = recipe.train_tasks or (spec.name,)
     venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options) for name in tasks])

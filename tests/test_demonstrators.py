@@ -1,0 +1,90 @@
+"""Demonstrators: training with SB3, weights-only save/load, shipped experts' scores, the score table."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+
+from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_reference_scores, read_scores
+from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
+from vintix.demonstrators.training import DemonstratorRecipe, recipe_for, train_demonstrator
+from vintix.errors import VintixError
+from vintix.tasks import get_task, make_env
+
+
+def normalized(task: str, mean_return: float) -> float:
+    spec = get_task(task)
+    return (mean_return - spec.paper_random.mean) / (spec.paper_expert.mean - spec.paper_random.mean)
+
+
+def small_recipe(task: str) -> DemonstratorRecipe:
+    """The task's recipe with rollouts and updates small enough for a test."""
+    recipe = recipe_for(task)
+    if recipe.algorithm != "PPO":
+        return replace(recipe, hyperparameters={**recipe.hyperparameters, "learning_starts": 100})
+    return replace(recipe, train_tasks=recipe.train_tasks[:2],
+                   hyperparameters={**recipe.hyperparameters, "n_steps": 64, "batch_size": 32, "n_epochs": 1})
+
+
+@pytest.mark.parametrize("task", ["Reacher-v5", "industrial-benchmark-35-v1"])  # SAC actor; PPO + VecNormalize
+def test_trained_policy_round_trips_through_weights_only_files(tmp_path, task):
+    path = train_demonstrator(task, timesteps=120, out=tmp_path, progress_bar=False, recipe=small_recipe(task))
+    assert path.suffix == ".safetensors" and path.with_suffix(".json").is_file()
+    demonstrator = TrainedDemonstrator(get_task(task), tmp_path)
+    env = make_env(task, seed=0)
+    observations = np.stack([env.reset()[0], env.observation_space.sample()])
+    actions = demonstrator.act(observations, [env, env])
+    assert actions.shape == (2, get_task(task).act_dim)
+    assert np.all(actions >= env.action_space.low) and np.all(actions <= env.action_space.high)
+    np.testing.assert_array_equal(actions, demonstrator.act(observations, [env, env]))  # deterministic
+
+
+def test_industrial_benchmark_policy_normalizes_observations_like_its_training():
+    demonstrator = load_demonstrator("industrial-benchmark-50-v1")
+    assert demonstrator.metadata["env_options"] == {"reward_type": "delta"}
+    raw = np.array([[50.0, 40.0, 60.0, 50.0, 30.0, 150.0]], dtype=np.float32)
+    scaled = demonstrator.normalize(raw)
+    assert np.all(np.abs(scaled) < 10) and not np.allclose(scaled, raw)
+
+
+@pytest.mark.parametrize("task, episodes", [("InvertedPendulum-v5", 3), ("industrial-benchmark-35-v1", 3),
+                                            ("industrial-benchmark-90-v1", 3), ("Reacher-v5", 10)])
+def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episodes):
+    returns = episode_returns(task, load_demonstrator(task), episodes)
+    assert normalized(task, returns.mean()) >= 0.8
+
+
+def test_task_without_shipped_weights_names_the_command_that_trains_them():
+    with pytest.raises(VintixError, match="vintix demonstrator train --task Humanoid-v5"):
+        load_demonstrator("Humanoid-v5")
+
+
+def test_metaworld_has_no_training_recipe():
+    with pytest.raises(VintixError, match="scripted"):
+        recipe_for("reach-v3")
+
+
+def test_random_policy_scores_below_the_demonstrator_and_table_round_trips(tmp_path):
+    table = tmp_path / "scores.csv"
+    expert = measure("reach-v3", "demonstrator", load_demonstrator("reach-v3"), 3, 0, "cmd")
+    random = measure("reach-v3", "random", UniformRandomPolicy(), 3, 0, "cmd")
+    assert expert.mean > 2 * random.mean
+    assert our_reference_scores("reach-v3", table) is None
+    record_scores([expert], table)
+    assert our_reference_scores("reach-v3", table) is None  # random missing: no half reference
+    record_scores([random, replace(expert, mean=1.0)], table)
+    assert read_scores(table) == [replace(expert, mean=1.0), random]
+    random_ref, expert_ref = our_reference_scores("reach-v2", table)  # aliases resolve
+    assert (random_ref.mean, expert_ref.mean) == (random.mean, 1.0) and "3 episodes" in expert_ref.provenance
+
+
+def test_collection_with_a_trained_demonstrator_rises(tmp_path):
+    plan = CollectionPlan("industrial-benchmark-35-v1", histories=1, steps=5000,
+                          schedule=NoiseSchedule(noise_free_fraction=0.1))
+    [summary] = collect(plan, tmp_path)
+    returns = summary.episode_returns
+    assert len(returns) == 20
+    assert spearmanr(np.arange(len(returns)), returns).statistic >= 0.8
+    assert normalized(plan.task, summary.mean_return(first=False)) >= 0.8
