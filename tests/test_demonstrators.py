@@ -1,5 +1,6 @@
 """Demonstrators: training with SB3, weights-only save/load, shipped experts' scores, the score table."""
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -9,6 +10,7 @@ from scipy.stats import spearmanr
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_reference_scores, read_scores
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
+from vintix.demonstrators.trained import shipped_weights_dir
 from vintix.demonstrators.training import DemonstratorRecipe, recipe_for, train_demonstrator
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
@@ -49,11 +51,25 @@ def test_industrial_benchmark_policy_normalizes_observations_like_its_training()
     assert np.all(np.abs(scaled) < 10) and not np.allclose(scaled, raw)
 
 
-@pytest.mark.parametrize("task, episodes", [("InvertedPendulum-v5", 3), ("industrial-benchmark-35-v1", 3),
-                                            ("industrial-benchmark-90-v1", 3), ("Reacher-v5", 10)])
+@pytest.mark.parametrize("task, episodes", [
+    ("InvertedPendulum-v5", 2), ("InvertedDoublePendulum-v5", 2), ("Swimmer-v5", 2), ("Reacher-v5", 10),
+    ("Pusher-v5", 10), ("industrial-benchmark-35-v1", 3), ("industrial-benchmark-90-v1", 3),
+])
 def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episodes):
     returns = episode_returns(task, load_demonstrator(task), episodes)
     assert normalized(task, returns.mean()) >= 0.8
+
+
+def test_every_shipped_demonstrator_records_its_command_and_score():
+    scored = {(s.task, s.policy) for s in read_scores()}
+    shipped = sorted(shipped_weights_dir().glob("*.json"))
+    assert len(shipped) >= 6
+    for meta_path in shipped:
+        meta = json.loads(meta_path.read_text())
+        assert meta["command"].startswith("vintix demonstrator train --task ") and meta["train_seconds"] > 0
+        task = meta["command"].split()[4]
+        assert (get_task(task).group, meta["group"]) == (meta_path.stem, meta_path.stem)
+        assert {(task, "demonstrator"), (task, "random")} <= scored, f"{task}: run vintix demonstrator eval"
 
 
 def test_task_without_shipped_weights_names_the_command_that_trains_them():
