@@ -396,13 +396,17 @@ def eval_command(
     label: Annotated[Optional[str], typer.Option(help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
     device: str = "cpu",
+    threads: Annotated[int, typer.Option(help="torch CPU threads; 1 suits small models, whose steps are many tiny ops "
+                                         "that a second thread slows down on a busy machine")] = 1,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
+    import torch
     from rich.progress import Progress
 
     from vintix.agent import Agent
     from vintix.evaluate import EvalConfig, evaluate, parse_variation, summarize
 
+    torch.set_num_threads(threads)
     try:
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
