@@ -278,16 +278,18 @@ def data_plot(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
     out: Annotated[Path, typer.Option(help="folder for the PNG figures")] = Path("figs"),
     bins: Annotated[int, typer.Option(help="bins along the history")] = 50,
+    reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
 ) -> None:
     """Paper Figure 3: IQM of normalized episode return along the histories, per task and per domain."""
     from vintix.data.plot import plot_dataset
-    from vintix.errors import DatasetError
 
     try:
-        written = plot_dataset(root, out, bins)
-    except DatasetError as error:
+        written, skipped = plot_dataset(root, out, bins, reference)
+    except (VintixError, ValueError) as error:
         raise _fail(error)
-    console.print(f"wrote {len(written)} figures under {out} (normalized by the paper's random/expert scores)")
+    if skipped:
+        console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: {', '.join(skipped)}")
+    console.print(f"wrote {len(written)} figures under {out} (normalized by the '{reference}' random/expert scores)")
 
 
 @app.command("train")

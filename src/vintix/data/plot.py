@@ -1,9 +1,12 @@
 """Figure 3 of the paper for any dataset: how episode return rises along the learning histories.
 
 Each history's episode returns are normalized by the task's reference scores,
-`(R − random) / (expert − random)`, placed at their fraction of the history, and averaged into
-`bins` equal bins. A task's curve is the IQM over its histories; a domain's is the IQM over all the
-histories of its tasks, so every history weighs the same.
+`(R − random) / (expert − random)`, and spread over the steps of their episode; the curve is the mean
+over each of `bins` equal fractions of the history's *steps*, so a bin always has a value however
+long the episodes are (a 30k-step Swimmer history has only 30 episodes). A task's curve is the IQM
+over its histories; a domain's is the IQM over all the histories of its tasks, so every history
+weighs the same. The reference table is ours by default (our demonstrators' measured returns: the
+paper's are from other env versions), or the paper's.
 """
 
 from __future__ import annotations
@@ -18,18 +21,16 @@ from scipy.stats import trim_mean
 from vintix.atomic import atomic_path
 from vintix.data.hdf5 import LearningHistory, PathLike, find_tasks
 from vintix.errors import UnknownTaskError
-from vintix.tasks import get_task
 
 
-def normalized_curve(episode_returns: np.ndarray, random: float, expert: float, bins: int) -> np.ndarray:
-    """Mean normalized return in each of `bins` equal fractions of the history (NaN where no episode)."""
+def normalized_curve(episode_returns: np.ndarray, episode_lengths: np.ndarray, random: float, expert: float,
+                     bins: int) -> np.ndarray:
+    """Mean normalized return over the steps in each of `bins` equal fractions of the history."""
     scores = (np.asarray(episode_returns, dtype=np.float64) - random) / (expert - random)
-    position = (np.arange(len(scores)) + 0.5) / len(scores)
-    which = np.minimum((position * bins).astype(int), bins - 1)
-    total = np.bincount(which, weights=scores, minlength=bins)
-    count = np.bincount(which, minlength=bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return total / count
+    per_step = np.repeat(scores, episode_lengths)
+    which = np.arange(len(per_step)) * bins // len(per_step)
+    with np.errstate(invalid="ignore"):  # NaN only where a history has fewer steps than bins
+        return np.bincount(which, weights=per_step, minlength=bins) / np.bincount(which, minlength=bins)
 
 
 def iqm(curves: np.ndarray) -> np.ndarray:
@@ -53,27 +54,36 @@ def _plot(curves: dict[str, np.ndarray], title: str, path: Path) -> Path:
     return path
 
 
-def plot_dataset(root: PathLike, out: PathLike, bins: int = 50) -> list[Path]:
-    """One PNG per task and one per domain under `out`; normalized by the registry's (paper's) scores.
-    Tasks the registry does not know are skipped (they have no reference scores)."""
+def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table: str = "ours") -> tuple[list[Path], list[str]]:
+    """One PNG per task and one per domain under `out`, normalized by `reference_table` ('ours' or
+    'paper'). Returns the figures and the tasks skipped: unknown to the registry, or without a
+    reference in the table."""
+    from vintix.evaluate.scores import reference
+
     out = Path(out)
     by_domain: dict[str, dict[str, np.ndarray]] = defaultdict(dict)
+    skipped = []
     for task in find_tasks(root):
         try:
-            spec = get_task(task.task_name)
+            scores = reference(task.task_name, reference_table)
         except UnknownTaskError:
+            scores = None
+        if scores is None or not task.history_paths:
+            skipped.append(task.task_name)
             continue
         curves = []
         for path in task.history_paths:
             with LearningHistory(path) as history:
-                curves.append(normalized_curve(history.episode_returns(), spec.paper_random.mean,
-                                               spec.paper_expert.mean, bins))
-        if curves:
-            by_domain[task.domain][spec.name] = np.array(curves)
+                returns = history.episode_returns()
+                lengths = np.diff(np.append(history.episode_starts, history.num_steps))
+                if len(returns) > 1:  # the history's end usually cuts its last episode short: a fake dip
+                    returns, lengths = returns[:-1], lengths[:-1]
+                curves.append(normalized_curve(returns, lengths, scores.random, scores.expert, bins))
+        by_domain[task.domain][task.task_name] = np.array(curves)
     written = []
     for domain, tasks in sorted(by_domain.items()):
         for name, curves in sorted(tasks.items()):
             written.append(_plot({name: curves}, name, out / domain / f"{name}.png"))
         written.append(_plot({domain: np.concatenate(list(tasks.values()))},
                              f"{domain}: {len(tasks)} tasks", out / f"{domain}.png"))
-    return written
+    return written, skipped
