@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -101,6 +102,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
         venv = vec_normalize = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=gamma)
     model = ALGORITHMS[recipe.algorithm]("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
                                          **recipe.hyperparameters)
+    # A logger without outputs: SB3's default one makes an empty SB3-<time> folder in /tmp every run.
+    model.set_logger(Logger(folder=None, output_formats=[]))
     start = time.perf_counter()
     model.learn(total_timesteps=budget, progress_bar=progress_bar)
     seconds = time.perf_counter() - start
