@@ -15,7 +15,7 @@ from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.model import CheckpointError, load_pretrained
 from vintix.train import TrainConfig, Trainer, WindowDataset, WindowLoss, build_optimizer, collate_windows, learning_rate
-from vintix.train.checkpoint import latest_checkpoint, read_training_state
+from vintix.train.checkpoint import latest_checkpoint, model_directory, read_training_state
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -137,6 +137,9 @@ def test_checkpoint_loads_without_the_dataset_and_callbacks_see_the_model(metawo
     assert torch.equal(model.obs_mean, trainer.model.obs_mean.cpu())
     state = read_training_state(checkpoint)
     assert state["step"] == 4 and state["train_config"] == dataclasses.asdict(config)
+    assert model_directory(tmp_path / "run") == checkpoint  # a run folder means its newest model
+    with pytest.raises(CheckpointError, match="neither a model checkpoint"):
+        model_directory(tmp_path)
 
 
 def test_vintix_train_command_trains_and_resumes(metaworld_data, tmp_path):

@@ -385,7 +385,7 @@ def bench_infer(
 
 @app.command("eval")
 def eval_command(
-    checkpoint: Annotated[Path, typer.Option(help="checkpoint directory (model.json + model.safetensors)")],
+    checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (model.json + model.safetensors), or a training run: its newest checkpoint")],
     tasks: Annotated[list[str], typer.Option(help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
     shots: Annotated[int, typer.Option(help="episodes per run")] = 50,
@@ -407,12 +407,14 @@ def eval_command(
 
     from vintix.agent import Agent
     from vintix.evaluate import EvalConfig, evaluate, parse_variation, summarize
+    from vintix.train.checkpoint import model_directory
 
     torch.set_num_threads(threads)
     try:
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
                             prompt_steps=prompt_steps, batch_envs=batch_envs)
+        checkpoint = model_directory(checkpoint)
         agent = Agent.from_pretrained(checkpoint, device)
         with Progress(console=console) as progress:
             rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress)

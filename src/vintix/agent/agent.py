@@ -24,6 +24,7 @@ import torch
 from vintix.agent.cache import KVCache, cached_backbone
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import load_pretrained
+from vintix.train.checkpoint import model_directory
 from vintix.model.model import Vintix
 from vintix.tasks import get_task, make_env
 
@@ -170,8 +171,9 @@ class Agent:
 
     @classmethod
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
-        """An agent around the checkpoint saved in `directory` (see `vintix.model.save_pretrained`)."""
-        return cls(load_pretrained(directory, device))
+        """An agent around the model saved in `directory`: a checkpoint (see `vintix.model.save_pretrained`)
+        or a training run's folder, whose newest checkpoint it loads."""
+        return cls(load_pretrained(model_directory(directory), device))
 
     @property
     def device(self) -> torch.device:

@@ -22,7 +22,7 @@ import torch
 from safetensors.torch import load_file, save_file
 
 from vintix.atomic import PARTIAL_SUFFIX, atomic_path, atomic_write_text
-from vintix.model.checkpoint import CheckpointError, read_metadata, save_pretrained
+from vintix.model.checkpoint import CONFIG_FILE, WEIGHTS_FILE, CheckpointError, read_metadata, save_pretrained
 from vintix.model.model import GroupSpec, ModelConfig, Vintix
 
 CHECKPOINTS = "checkpoints"
@@ -50,6 +50,21 @@ def latest_checkpoint(out: str | os.PathLike[str]) -> Path | None:
     """The newest complete checkpoint of a run, if any."""
     found = list_checkpoints(out)
     return found[-1] if found else None
+
+
+def model_directory(path: str | os.PathLike[str]) -> Path:
+    """What `load_pretrained` should read for `path`: `path` itself when it holds a model, else the
+    newest checkpoint of the training run at `path` (so `runs/x` means its latest model)."""
+    path = Path(path)
+    if (path / CONFIG_FILE).is_file():
+        return path
+    latest = latest_checkpoint(path)
+    if latest is None:
+        raise CheckpointError(
+            f"{path}: neither a model checkpoint ({CONFIG_FILE} + {WEIGHTS_FILE}) nor a training run with "
+            f"{CHECKPOINTS}/step-N/ inside; point to a `vintix train --out` folder or one of its checkpoints"
+        )
+    return latest
 
 
 def _optimizer_tensors(optimizer: torch.optim.Optimizer, names: list[str]) -> tuple[dict[str, torch.Tensor], list[dict]]:
