@@ -11,6 +11,8 @@ def test_shipped_recipes_load():
     assert tiny["button-press-v3"].schedule.curvature == 2.0 and tiny["reach-v3"].schedule.curvature == 1.0
     suite = load_recipe("metaworld-cpu")
     assert len(suite) == 45 and "door-lock-v3" not in {p.task for p in suite}  # test tasks stay out
+    domains = {get_task(plan.task).domain for plan in load_recipe("multidomain-tiny")}
+    assert domains == {"mujoco", "metaworld", "industrial_benchmark"}
     paper = {plan.task: plan for plan in load_recipe("paper")}
     assert len(paper) == 72 and {get_task(t).split for t in paper} == {"train"}
     assert (paper["Humanoid-v5"].histories, paper["Humanoid-v5"].steps) == (15, 1_000_000)  # Appendix G
