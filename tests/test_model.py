@@ -90,6 +90,9 @@ def test_alibi_attention_matches_explicit_softmax_with_key_window_offset():
     bias_b = alibi_bias(torch.stack([q_pos, q_pos + 7]), torch.stack([k_pos, k_pos + 7]), slopes)
     assert bias_b.shape == (B, H, 10, 15)
     assert torch.allclose(attention(q, k, v, bias_b), out, atol=1e-6)
+    # A single query (a cached agent step) takes its own matrix-vector path: same answer.
+    last = attention(q[:, :, -1:], k, v, alibi_bias(q_pos[-1:], k_pos, slopes))
+    assert torch.allclose(last, out[:, :, -1:], atol=1e-6)
 
 
 # --- the model ---------------------------------------------------------------------------------
