@@ -58,6 +58,25 @@ def test_a_mixed_group_batch_acts_like_each_env_alone():
         np.testing.assert_allclose(together[i], play(agent, [inputs[i]], 12)[0], rtol=1e-5, atol=1e-5)
 
 
+def test_envs_dropped_mid_run_leave_the_others_acting_as_before():
+    model = tiny_model()
+    tasks = ["reach-v3", "InvertedPendulum-v5", "push-v3", "InvertedPendulum-v5"]
+    spaces = [UNBOUNDED[4], UNBOUNDED[1], UNBOUNDED[4], UNBOUNDED[1]]
+    inputs = [random_inputs(model, model.task_norms[model.task_index(t)].group, 1, steps=12, seed=i)
+              for i, t in enumerate(tasks)]
+    agent = Agent(model)
+    agent.reset(tasks, spaces)
+    together = play(agent, inputs, 12)
+    agent.reset(tasks, spaces)
+    first = play(agent, inputs, 5)
+    agent.keep([3, 0])  # reordered, and a group (push's) loses a member
+    rest = play(agent, [{k: v[:, 5:] for k, v in inputs[i].items()} for i in (3, 0)], 7)
+    for env, after in zip((3, 0), rest):
+        np.testing.assert_allclose(np.concatenate([first[env], after]), together[env], rtol=1e-5, atol=1e-5)
+    with pytest.raises(ValueError, match="keep needs indices"):
+        agent.keep([2])
+
+
 def test_actions_are_clipped_to_each_envs_bounds():
     model = tiny_model()
     with torch.no_grad():

@@ -193,12 +193,33 @@ class Agent:
             raise ValueError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces")
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
         self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces)]
-        groups = sorted({t.group for t in self.tasks})
-        self._groups = {g: _GroupBatch.of(self.tasks, g, self.device) for g in groups}
+        self._regroup()
         self._prev_action = {
-            g: torch.zeros(len(self._groups[g].envs), self.model.groups[g].act_dim, device=self.device) for g in groups
+            g: torch.zeros(len(b.envs), self.model.groups[g].act_dim, device=self.device) for g, b in self._groups.items()
         }
         self.cache = KVCache.for_model(self.model, len(self.tasks))
+
+    def _regroup(self) -> None:
+        """Per-group views of the batch (`self.tasks`), built once per reset or keep, not per step."""
+        self._groups = {g: _GroupBatch.of(self.tasks, g, self.device) for g in sorted({t.group for t in self.tasks})}
+
+    def keep(self, envs: Sequence[int]) -> None:
+        """Go on with only the envs at batch indices `envs` (they become envs 0, 1, ... in that
+        order); the others are dropped with their context. The kept envs act exactly as they would
+        have: this lets a batch shrink as its envs finish, instead of stepping them to no purpose."""
+        if self.cache is None:
+            raise RuntimeError("call agent.reset(tasks) before agent.keep(...)")
+        envs = list(envs)
+        if not envs or not all(0 <= i < len(self.tasks) for i in envs):
+            raise ValueError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
+        # Each env's previous action lives in its group's rows; gather them per old env index first.
+        previous: dict[int, torch.Tensor] = {}
+        for group, batch in self._groups.items():
+            previous.update(zip(batch.envs.tolist(), self._prev_action[group]))
+        self.tasks = [self.tasks[i] for i in envs]
+        self._regroup()
+        self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()]) for g, b in self._groups.items()}
+        self.cache.keep(torch.tensor(envs, device=self.device))
 
     def _check(self, what: str, env: int, values: np.ndarray, shape: tuple[int, ...]) -> None:
         task = self.tasks[env]

@@ -79,6 +79,12 @@ class KVCache:
         self.length += new_tokens
         return alibi_bias(query_positions, self.positions[: self.filled], slopes)
 
+    def keep(self, envs: torch.Tensor) -> None:
+        """Keep only the batch rows `envs` (indices, in that order). The rows share one clock, so
+        positions stay as they are; this copies the kept rows once, a cost paid per call, not per step."""
+        self.keys = self.keys[:, envs]
+        self.values = self.values[:, envs]
+
     def layer(self, index: int) -> KVUpdate:
         """Layer `index`'s hook: store the new k, v ``[B, H, T, head_dim]``, return the filled window."""
         keys, values, slots, filled = self.keys[index], self.values[index], self._slots, self.filled

@@ -4,8 +4,9 @@ from the start of a stored learning history.
 
 Protocol: env ``i`` of a task is ``make_env(task, seed=first_seed + i)``. A Meta-World env keeps one
 hidden goal for its life (drawn from its seed), so each seed is another goal to infer from reward
-across shots. Envs step together until every run has played ``shots`` episodes; a run that is done
-keeps stepping (its extra episodes are dropped) because the batch shares one KV-cache clock.
+across shots. Envs step together; a run leaves the batch (and the agent its context) as soon as it
+has played ``shots`` episodes, so 100-step Meta-World runs do not wait, stepping, for 1000-step
+MuJoCo runs of the same batch.
 """
 
 from __future__ import annotations
@@ -125,7 +126,8 @@ def _canonical(task: str) -> str | None:
 
 
 def play_shots(agent: Agent, envs: Sequence[Any], shots: int, progress: Progress | None = None) -> list[list[Episode]]:
-    """Step `envs` (the agent already reset for them) until each has finished `shots` episodes."""
+    """Step `envs` (the agent already reset for them) until each has finished `shots` episodes; an
+    env that has is dropped from the agent's batch (`Agent.keep`)."""
     n = len(envs)
     observations = [env.reset()[0] for env in envs]
     rewards, starts = np.zeros(n), np.ones(n, dtype=bool)
@@ -133,24 +135,29 @@ def play_shots(agent: Agent, envs: Sequence[Any], shots: int, progress: Progress
     success: list[float | None] = [None] * n
     episodes: list[list[Episode]] = [[] for _ in envs]
     bar = progress.add_task("episodes", total=n * shots) if progress else None
-    while min(len(e) for e in episodes) < shots:
-        actions = agent.act(observations, rewards, starts)
-        for i, env in enumerate(envs):
-            observation, reward, terminated, truncated, info = env.step(actions[i])
+    active = list(range(n))  # the envs still playing, in the agent's batch order
+    while active:
+        actions = agent.act([observations[i] for i in active], rewards[active], starts[active])
+        for i, action in zip(active, actions):
+            observation, reward, terminated, truncated, info = envs[i].step(action)
             returns[i] += reward
             lengths[i] += 1
             if "success" in info:
                 success[i] = max(success[i] or 0.0, float(info["success"]))
             if terminated or truncated:
-                if len(episodes[i]) < shots:
-                    episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i]))
-                    if progress is not None and bar is not None:
-                        progress.advance(bar)
-                observation, _ = env.reset()
+                episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i]))
+                if progress is not None and bar is not None:
+                    progress.advance(bar)
+                observation, _ = envs[i].reset()
                 returns[i], lengths[i], success[i], rewards[i], starts[i] = 0.0, 0, None, 0.0, True
             else:
                 rewards[i], starts[i] = reward, False
             observations[i] = observation
+        playing = [j for j, i in enumerate(active) if len(episodes[i]) < shots]
+        if len(playing) < len(active):
+            active = [active[j] for j in playing]
+            if active:
+                agent.keep(playing)
     return episodes
 
 
@@ -167,6 +174,7 @@ def run_episodes(
         envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
         try:
             agent.reset([spec.name for spec, _ in batch], [env.action_space for env in envs])
+            tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
             if config.prompt_from is not None:
                 prompts = [load_prompt(config.prompt_from, spec.name, seed, prompt_steps) for spec, seed in batch]
                 agent.prompt(*([p[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
@@ -174,7 +182,7 @@ def run_episodes(
         finally:
             for env in envs:
                 env.close()
-        for (spec, seed), task, episodes in zip(batch, agent.tasks, results):
+        for (spec, seed), task, episodes in zip(batch, tasks, results):
             rows += [
                 {"task": spec.name, "domain": spec.domain, "split": spec.split, "group": spec.group, "seed": seed,
                  "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
