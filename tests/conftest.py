@@ -1,6 +1,13 @@
 """Shared helpers for tests that drive real environments."""
 
 import numpy as np
+import pytest
+
+
+@pytest.fixture(autouse=True)
+def own_user_cache(tmp_path, monkeypatch):
+    """Tests never read or delete the user's ~/.cache/vintix (norm stats, unfinished demonstrator runs)."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "user-cache"))
 
 
 def rollout(env, steps: int, action_seed: int = 0, reset_seed: int | None = None):

@@ -6,12 +6,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.stats import spearmanr
+from stable_baselines3.common.callbacks import BaseCallback
 
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_reference_scores, read_scores
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
 from vintix.demonstrators.trained import shipped_weights_dir
-from vintix.demonstrators.training import DemonstratorRecipe, recipe_for, train_demonstrator
+from vintix.demonstrators.training import DemonstratorRecipe, default_state_dir, recipe_for, train_demonstrator
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
 
@@ -41,6 +42,50 @@ def test_trained_policy_round_trips_through_weights_only_files(tmp_path, task):
     assert actions.shape == (2, get_task(task).act_dim)
     assert np.all(actions >= env.action_space.low) and np.all(actions <= env.action_space.high)
     np.testing.assert_array_equal(actions, demonstrator.act(observations, [env, env]))  # deterministic
+
+
+class InterruptAt(BaseCallback):
+    """Ctrl-C at env step `step`."""
+
+    def __init__(self, step: int):
+        super().__init__()
+        self.step = step
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.step:
+            raise KeyboardInterrupt
+        return True
+
+
+class RecordStart(BaseCallback):
+    """Where training starts: env steps done, transitions in the replay buffer."""
+
+    def _on_training_start(self) -> None:
+        self.start = (self.model.num_timesteps, self.model.replay_buffer.size())
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def test_interrupted_training_resumes_where_it_stopped(tmp_path):
+    task = "InvertedPendulum-v5"
+    recipe = DemonstratorRecipe("SAC", 120, {"learning_starts": 20, "batch_size": 16, "buffer_size": 1000},
+                                normalize_observations=True)
+    run = dict(out=tmp_path, progress_bar=False, recipe=recipe)
+    with pytest.raises(KeyboardInterrupt):
+        train_demonstrator(task, callback=InterruptAt(70), **run)
+    state = default_state_dir(get_task(task).group, seed=0)
+    saved = json.loads(next(state.glob("steps-*/state.json")).read_text())
+    assert saved["num_timesteps"] == 70 and not (tmp_path / "mujoco-invertedpendulum.json").exists()
+    with pytest.raises(VintixError, match="unfinished run with other settings"):
+        train_demonstrator(task, timesteps=200, **run)
+    started = RecordStart()
+    path = train_demonstrator(task, callback=started, **run)
+    steps_done, transitions = started.start
+    assert steps_done == 70 and 0 < transitions <= 70  # model and replay buffer came back
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert (meta["resumed_at"], meta["timesteps"]) == (70, 120) and "obs_normalization" in meta
+    assert not state.exists()
 
 
 def test_industrial_benchmark_policy_normalizes_observations_like_its_training():

@@ -10,24 +10,39 @@ Industrial Benchmark follows the paper (PPO, advantage normalization, target KL 
 gamma 0.97, 1M steps, trained on the delta reward and scored on the classic one) with one change: a
 single policy is trained on all 21 setpoints at once, one env each (the setpoint is its first
 observation), with 250 steps per env per rollout (5,250 per update, the paper's 2,500 per task).
+
+Training resumes: every few minutes, and on Ctrl-C, the run saves the SB3 model, its replay buffer and
+its VecNormalize statistics (SB3's own save functions) under ``~/.cache/vintix/demonstrator-training``;
+re-running the same command continues from there. The episodes in progress restart and the RNG
+streams differ, so a resumed run is not bit-identical to an uninterrupted one. These are local,
+pickled working files; only the final weights ship, as safetensors.
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 import time
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.monitor import Monitor
-from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.type_aliases import MaybeCallback
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
+from vintix.atomic import atomic_write_text
 from vintix.demonstrators.trained import ALGORITHMS, save_trained_policy, shipped_weights_dir
 from vintix.errors import VintixError
 from vintix.tasks import get_task, list_tasks, make_env
+from vintix.userdirs import user_cache_dir
 
 
 @dataclass(frozen=True)
@@ -84,35 +99,137 @@ def _monitored_env(task: str, options: dict[str, Any]) -> gym.Env:
     return Monitor(make_env(task, **options))
 
 
+def default_state_dir(group: str, seed: int) -> Path:
+    """Where an unfinished training run of `group` with `seed` keeps what it needs to resume."""
+    return user_cache_dir("demonstrator-training") / f"{group}-seed{seed}"
+
+
+def training_plan(task: str, timesteps: int | None, seed: int, recipe: DemonstratorRecipe | None = None) -> dict[str, Any]:
+    """What a saved state must match to be resumed by a run: group, budget, seed and recipe."""
+    recipe = recipe or recipe_for(task)
+    plan = {"group": get_task(task).group, "timesteps": timesteps or recipe.timesteps, "seed": seed,
+            "recipe": asdict(recipe)}
+    return dict(json.loads(json.dumps(plan)))  # tuples as lists, as they come back from state.json
+
+
+STATE_FILE = "state.json"  # written last: a state folder without it is incomplete
+
+
+def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None, directory: Path,
+                        plan: dict[str, Any], train_seconds: float) -> Path:
+    """Save what resuming needs into ``directory/steps-N/``, then delete older (or incomplete) states."""
+    state = directory / f"steps-{model.num_timesteps:012d}"
+    shutil.rmtree(state, ignore_errors=True)
+    state.mkdir(parents=True)
+    model.save(state / "model.zip")
+    if isinstance(model, OffPolicyAlgorithm):
+        model.save_replay_buffer(state / "replay_buffer.pkl")
+    if vec_normalize is not None:
+        vec_normalize.save(str(state / "vecnormalize.pkl"))
+    info = {"plan": plan, "num_timesteps": model.num_timesteps, "train_seconds": round(train_seconds, 1)}
+    atomic_write_text(state / STATE_FILE, json.dumps(info, indent=1) + "\n")
+    for other in directory.glob("steps-*"):
+        if other != state:
+            shutil.rmtree(other, ignore_errors=True)
+    return state
+
+
+def latest_training_state(directory: Path, plan: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:
+    """The newest complete state in `directory` and its info; an unfinished run with another plan
+    is an error (resuming it under new settings would train neither)."""
+    complete = sorted(p.parent for p in directory.glob(f"steps-*/{STATE_FILE}"))
+    if not complete:
+        return None
+    info = json.loads((complete[-1] / STATE_FILE).read_text())
+    if info["plan"] != plan:
+        raise VintixError(
+            f"{directory} holds an unfinished run with other settings ({info['plan']}); re-run with those "
+            f"settings to finish it, or delete the folder to start this one ({plan})"
+        )
+    return complete[-1], info
+
+
+class _SaveEvery(BaseCallback):
+    """Calls `save` whenever `seconds` of training have passed since the last call."""
+
+    def __init__(self, save: Callable[[], object], seconds: float):
+        super().__init__()
+        self.save, self.seconds, self.last = save, seconds, time.perf_counter()
+
+    def _on_step(self) -> bool:
+        if time.perf_counter() - self.last >= self.seconds:
+            self.save()
+            self.last = time.perf_counter()
+        return True
+
+
+def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume: Path | None
+                    ) -> tuple[BaseAlgorithm, VecNormalize | None]:
+    """The SB3 model (and its VecNormalize wrapper, if the recipe has one): fresh, or loaded from `resume`."""
+    vec_normalize = None
+    if recipe.normalize_observations:
+        if resume is not None:
+            vec_normalize = VecNormalize.load(str(resume / "vecnormalize.pkl"), venv)
+        else:
+            gamma = recipe.hyperparameters.get("gamma", 0.99)
+            vec_normalize = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=gamma)
+        venv = vec_normalize
+    algorithm = ALGORITHMS[recipe.algorithm]
+    if resume is None:
+        model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **recipe.hyperparameters)
+    else:
+        model = algorithm.load(resume / "model.zip", env=venv, device="cpu")
+        if isinstance(model, OffPolicyAlgorithm):
+            model.load_replay_buffer(resume / "replay_buffer.pkl")
+    # A logger without outputs: SB3's default one makes an empty SB3-<time> folder in /tmp every run.
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model, vec_normalize
+
+
 def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, out: Path | None = None,
-                       progress_bar: bool = True, recipe: DemonstratorRecipe | None = None) -> Path:
+                       progress_bar: bool = True, recipe: DemonstratorRecipe | None = None,
+                       state_dir: Path | None = None, save_minutes: float = 5.0,
+                       callback: MaybeCallback = None) -> Path:
     """Train the demonstrator of `task`'s group and save it (default: into the package).
 
     Returns the weights file. `timesteps` overrides the budget (e.g. for a quick check); `recipe`
-    replaces the group's recipe (to try other hyperparameters).
+    replaces the group's recipe (to try other hyperparameters). The resumable state is saved every
+    `save_minutes` and on Ctrl-C under `state_dir` (default: `default_state_dir`); a run finds and
+    continues it, and deletes it once the weights are written. `callback`: more SB3 callbacks.
     """
     spec = get_task(task)
     recipe = recipe or recipe_for(task)
     budget = timesteps or recipe.timesteps
     tasks = recipe.train_tasks or (spec.name,)
+    plan = training_plan(task, timesteps, seed, recipe)
+    state_dir = state_dir or default_state_dir(spec.group, seed)
+    found = latest_training_state(state_dir, plan)
     venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options) for name in tasks])
-    vec_normalize = None
-    if recipe.normalize_observations:
-        gamma = recipe.hyperparameters.get("gamma", 0.99)
-        venv = vec_normalize = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=gamma)
-    model = ALGORITHMS[recipe.algorithm]("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
-                                         **recipe.hyperparameters)
-    # A logger without outputs: SB3's default one makes an empty SB3-<time> folder in /tmp every run.
-    model.set_logger(Logger(folder=None, output_formats=[]))
+    model, vec_normalize = _new_or_resumed(recipe, venv, seed, found[0] if found else None)
+    seconds_before = found[1]["train_seconds"] if found else 0.0
     start = time.perf_counter()
-    model.learn(total_timesteps=budget, progress_bar=progress_bar)
-    seconds = time.perf_counter() - start
+
+    def save_state() -> Path:
+        return save_training_state(model, vec_normalize, state_dir, plan,
+                                   seconds_before + time.perf_counter() - start)
+
+    callbacks = [_SaveEvery(save_state, save_minutes * 60.0)] + ([callback] if callback else [])
+    try:
+        model.learn(total_timesteps=budget - model.num_timesteps, callback=callbacks,
+                    reset_num_timesteps=found is None, progress_bar=progress_bar)
+    except KeyboardInterrupt:
+        save_state()
+        raise
+    seconds = seconds_before + time.perf_counter() - start
     command = f"vintix demonstrator train --task {spec.name} --seed {seed}"
     if timesteps:
         command += f" --timesteps {timesteps}"
     info = {"group": spec.group, "train_tasks": list(tasks), "timesteps": budget, "seed": seed,
             "train_seconds": round(seconds, 1), "hyperparameters": recipe.hyperparameters,
             "env_options": recipe.env_options, "command": command}
+    if found:
+        info["resumed_at"] = found[1]["num_timesteps"]
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
     venv.close()
+    shutil.rmtree(state_dir, ignore_errors=True)
     return path

@@ -29,6 +29,7 @@ from vintix.data.hdf5 import LearningHistory, TaskData, find_tasks
 from vintix.errors import DatasetError, UnknownTaskError, VintixError
 from vintix.model.model import GroupSpec, TaskNorm
 from vintix.tasks import TaskSpec, get_task, resolve_tasks
+from vintix.userdirs import user_cache_dir
 
 TaskSampling = Literal["uniform", "volume"]
 Window = dict[str, np.ndarray | int | str]
@@ -46,8 +47,8 @@ class TrainingDataError(VintixError, ValueError):
 
 
 def default_stats_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/vintix/norm-stats`` (``~/.cache/...``): outside the dataset, which may be read-only."""
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "vintix" / "norm-stats"
+    """``~/.cache/vintix/norm-stats``: outside the dataset, which may be read-only."""
+    return user_cache_dir("norm-stats")
 
 
 def task_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
