@@ -98,7 +98,7 @@ def test_industrial_benchmark_policy_normalizes_observations_like_its_training()
 
 @pytest.mark.parametrize("task, episodes", [
     ("InvertedPendulum-v5", 2), ("InvertedDoublePendulum-v5", 2), ("Swimmer-v5", 2), ("Reacher-v5", 10),
-    ("Pusher-v5", 10), ("Hopper-v5", 2), ("industrial-benchmark-35-v1", 3), ("industrial-benchmark-90-v1", 3),
+    ("Pusher-v5", 10), ("Hopper-v5", 2), ("HalfCheetah-v5", 2), ("industrial-benchmark-35-v1", 3), ("industrial-benchmark-90-v1", 3),
 ])
 def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episodes):
     returns = episode_returns(task, load_demonstrator(task), episodes)
@@ -108,7 +108,7 @@ def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episod
 def test_every_shipped_demonstrator_records_its_command_and_score():
     scored = {(s.task, s.policy) for s in read_scores()}
     shipped = sorted(shipped_weights_dir().glob("*.json"))
-    assert len(shipped) >= 7
+    assert len(shipped) >= 8
     for meta_path in shipped:
         meta = json.loads(meta_path.read_text())
         assert meta["command"].startswith("vintix demonstrator train --task ") and meta["train_seconds"] > 0
