@@ -152,22 +152,26 @@ def demonstrator_train(
     out: Annotated[Optional[Path], typer.Option(help="folder for the weights (default: the package's shipped ones)")] = None,
 ) -> None:
     """Train a MuJoCo or Industrial Benchmark demonstrator with Stable-Baselines3 and save its weights."""
-    from vintix.demonstrators.training import (
-        default_state_dir, latest_training_state, recipe_for, train_demonstrator, training_plan,
-    )
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from vintix.demonstrators.training import TrainingInterrupted, recipe_for, train_demonstrator
+
+    class SayWhereItStarts(BaseCallback):
+        def _on_training_start(self) -> None:
+            if self.model.num_timesteps:
+                console.print(f"resuming a saved run at step {self.model.num_timesteps:,}")
+
+        def _on_step(self) -> bool:
+            return True
 
     try:
         recipe = recipe_for(task)
-        state_dir = default_state_dir(get_task(task).group, seed)
-        found = latest_training_state(state_dir, training_plan(task, timesteps, seed))
-        budget = timesteps or recipe.timesteps
-        resumed = f", resuming at step {found[1]['num_timesteps']:,} from {found[0]}" if found else ""
-        console.print(f"training {recipe.algorithm} for {budget:,} steps on {task}{resumed}")
-        path = train_demonstrator(task, timesteps, seed, out)
+        console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}")
+        path = train_demonstrator(task, timesteps, seed, out, callback=SayWhereItStarts())
     except VintixError as error:
         raise _fail(error)
-    except KeyboardInterrupt:
-        console.print(f"interrupted; the run is saved under {state_dir}: re-run the same command to resume")
+    except TrainingInterrupted as interrupted:
+        console.print(str(interrupted))
         raise typer.Exit(130) from None
     console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task {task}`")
 

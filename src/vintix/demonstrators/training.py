@@ -105,12 +105,14 @@ def default_state_dir(group: str, seed: int) -> Path:
     return user_cache_dir("demonstrator-training") / f"{group}-seed{seed}"
 
 
-def training_plan(task: str, timesteps: int | None, seed: int, recipe: DemonstratorRecipe | None = None) -> dict[str, Any]:
+def _plan(group: str, budget: int, seed: int, recipe: DemonstratorRecipe) -> dict[str, Any]:
     """What a saved state must match to be resumed by a run: group, budget, seed and recipe."""
-    recipe = recipe or recipe_for(task)
-    plan = {"group": get_task(task).group, "timesteps": timesteps or recipe.timesteps, "seed": seed,
-            "recipe": asdict(recipe)}
+    plan = {"group": group, "timesteps": budget, "seed": seed, "recipe": asdict(recipe)}
     return dict(json.loads(json.dumps(plan)))  # tuples as lists, as they come back from state.json
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Ctrl-C during `train_demonstrator`, after the run was saved; the message says where."""
 
 
 STATE_FILE = "state.json"  # written last: a state folder without it is incomplete
@@ -202,7 +204,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     recipe = recipe or recipe_for(task)
     budget = timesteps or recipe.timesteps
     tasks = recipe.train_tasks or (spec.name,)
-    plan = training_plan(task, timesteps, seed, recipe)
+    plan = _plan(spec.group, budget, seed, recipe)
     state_dir = state_dir or default_state_dir(spec.group, seed)
     found = latest_training_state(state_dir, plan)
     venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options) for name in tasks])
@@ -220,7 +222,12 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
                     reset_num_timesteps=found is None, progress_bar=progress_bar)
     except KeyboardInterrupt:
         save_state()
-        raise
+        raise TrainingInterrupted(
+            f"interrupted at step {model.num_timesteps:,}; the run is saved under {state_dir}: "
+            "re-run the same command to resume"
+        ) from None
+    finally:
+        venv.close()
     seconds = seconds_before + time.perf_counter() - start
     command = f"vintix demonstrator train --task {spec.name} --seed {seed}"
     if timesteps:
@@ -231,6 +238,5 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     if found:
         info["resumed_at"] = found[1]["num_timesteps"]
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
-    venv.close()
     shutil.rmtree(state_dir, ignore_errors=True)
     return path
