@@ -14,6 +14,7 @@ from inference_model import one_torch_thread, tiny_model  # noqa: F401  (autouse
 from vintix.agent import Agent
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate import (
     EvalConfig,
@@ -88,15 +89,32 @@ def test_a_variation_only_applies_where_the_env_has_it():
         evaluate(agent, EvalConfig(tasks=["reach-v3"], shots=1, seeds=1, variation={"viscosity": 0.1}))
 
 
-def test_a_prompted_run_starts_after_the_stored_steps(tmp_path):
+def test_a_prompted_run_starts_after_the_stored_steps_on_the_prompting_historys_goal(tmp_path):
     collect([CollectionPlan("reach-v3", 2, 300, NoiseSchedule(1.0, 0.05), 0, 2)], tmp_path / "data")
+    histories = sorted((tmp_path / "data" / "metaworld" / "reach-v3").glob("*.h5"))
     agent = Agent(tiny_model())
     config = EvalConfig(tasks=["reach-v3"], shots=1, seeds=2, prompt_from=tmp_path / "data", prompt_steps=12)
     rows, _ = evaluate(agent, config)
     assert [r["prompt_steps"] for r in rows] == [12, 12]
     assert agent.steps == 12 + 100  # the prompt, then one 100-step episode
+    # Run i plays on history i's env, so its hidden goal is the one the prompt's rewards point to.
+    seeds = [LearningHistory(path).env_seed for path in histories]
+    assert [r["seed"] for r in rows] == seeds and len(set(seeds)) == 2
+    with pytest.raises(VintixError, match="has 2 histories, but prompting run 3"):
+        evaluate(agent, EvalConfig(tasks=["reach-v3"], shots=1, seeds=3, prompt_from=tmp_path / "data"))
     with pytest.raises(VintixError, match="no learning history of push-v3"):
         evaluate(agent, EvalConfig(tasks=["push-v3"], shots=1, seeds=1, prompt_from=tmp_path / "data"))
+
+
+def test_a_meta_world_history_without_its_env_seed_cannot_prompt(tmp_path):
+    """Published files do not say their goal: prompting with one would chase another goal."""
+    folder = task_directory(tmp_path / "data", "metaworld", "reach-v3")
+    write_task_metadata(folder, "reach-v3", 39, 4)
+    with LearningHistoryWriter(folder / "history-0000.h5", 39, 4) as writer:
+        writer.append(np.zeros((20, 39)), np.zeros((20, 4)), np.zeros(20), np.arange(20))
+    with pytest.raises(VintixError, match="hidden goal is unknown"):
+        evaluate(Agent(tiny_model()), EvalConfig(tasks=["reach-v3"], shots=1, seeds=1, prompt_from=tmp_path / "data",
+                                                 prompt_steps=10))
 
 
 def test_in_context_score_is_a_training_callback_that_restores_train_mode():

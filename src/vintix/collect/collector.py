@@ -82,7 +82,8 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     envs = [make_env(spec.name, seed=env_seed) for env_seed, _ in seeds]
     low, high = envs[0].action_space.low, envs[0].action_space.high
     epsilons = plan.schedule.epsilon(np.arange(plan.steps), plan.steps)
-    writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim) for i in indices]
+    writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim, attrs={"env_seed": env_seed})
+               for i, (env_seed, _) in zip(indices, seeds)]
     try:
         observations = np.stack([env.reset()[0] for env in envs])
         step_nums = np.zeros(len(envs), dtype=np.int64)

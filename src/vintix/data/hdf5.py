@@ -228,9 +228,14 @@ class LearningHistoryWriter:
 
         with LearningHistoryWriter(path, obs_dim=17, act_dim=6) as writer:
             writer.append(obs, action, reward, step_num)       # one step, or a batch of rows
+
+    ``attrs`` become root attributes of the file (e.g. ``env_seed``, which says which env, and so
+    which Meta-World hidden goal, the history was collected on); readers of the official format
+    ignore them.
     """
 
-    def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS) -> None:
+    def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS,
+                 attrs: dict[str, int | float | str] | None = None) -> None:
         self.path = Path(path)
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
@@ -248,6 +253,7 @@ class LearningHistoryWriter:
         self._last_step = -1
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file: h5py.File | None = h5py.File(self._partial, "w")
+        self._file.attrs.update(attrs or {})
 
     @property
     def num_steps(self) -> int:
@@ -389,6 +395,12 @@ class LearningHistory:
                 raise DatasetError(self.path, "; ".join(layout.problems))
             self._layout = layout
         return self._layout
+
+    @property
+    def env_seed(self) -> int | None:
+        """Seed of the env the history was collected on (our files), None for files without it."""
+        seed = self._file.attrs.get("env_seed")
+        return None if seed is None else int(seed)
 
     @property
     def num_steps(self) -> int:

@@ -54,7 +54,8 @@ class EvalConfig:
     variation: dict[str, float] = field(default_factory=dict)
     """physics variation of every env, e.g. {'viscosity': 0.05} (MuJoCo held-out evaluation)"""
     prompt_from: Path | None = None
-    """dataset root: prompt run i with the first prompt_steps steps of its task's history i (mod count)"""
+    """dataset root: prompt run i with the first prompt_steps steps of its task's history i, and run it on
+    that history's env (its env seed, so in Meta-World its hidden goal) instead of first_seed + i"""
     prompt_steps: int | None = None
     """prompt length in steps (default: half the model's window)"""
     batch_envs: int = 64
@@ -105,17 +106,36 @@ def select_tasks(selectors: Sequence[str], groups: Sequence[str]) -> tuple[list[
     return kept, notes
 
 
-def load_prompt(root: Path, task: str, index: int, steps: int) -> dict[str, np.ndarray]:
-    """The first `steps` rows of history `index` (mod the count) of `task` in the dataset at `root`."""
-    name = get_task(task).name
-    matches = [t for t in find_tasks(root) if _canonical(t.task_name) == name]
+@dataclass(frozen=True)
+class Prompt:
+    """The start of a stored learning history, and the env seed the history was collected on."""
+
+    rows: dict[str, np.ndarray]
+    env_seed: int | None
+
+
+def load_prompt(root: Path, task: str, index: int, steps: int) -> Prompt:
+    """The first `steps` rows of history `index` of `task` in the dataset at `root`.
+
+    A Meta-World run must be evaluated on the hidden goal of the history that prompts it, so a
+    Meta-World history must say its env seed (`vintix collect` records it; published files do not).
+    """
+    spec = get_task(task)
+    matches = [t for t in find_tasks(root) if _canonical(t.task_name) == spec.name]
     if not matches or not matches[0].history_paths:
-        raise VintixError(f"{root} has no learning history of {name}: cannot prompt it; collect some or drop --prompt-from")
+        raise VintixError(f"{root} has no learning history of {spec.name}: cannot prompt it; collect some or drop --prompt-from")
     paths = matches[0].history_paths
-    with LearningHistory(paths[index % len(paths)]) as history:
+    if index >= len(paths):
+        raise VintixError(f"{matches[0].task_dir} has {len(paths)} histories, but prompting run {index + 1} needs history "
+                          f"{index + 1}: use --seeds {len(paths)} or fewer, or collect more histories")
+    with LearningHistory(paths[index]) as history:
         if history.num_steps < steps:
             raise VintixError(f"{history.path} has {history.num_steps} steps, fewer than the prompt's {steps}")
-        return history.read(0, steps)
+        if spec.domain == "metaworld" and history.env_seed is None:
+            raise VintixError(f"{history.path} does not record the env seed it was collected on, so its hidden goal is "
+                              "unknown and a run prompted with it would chase another goal; prompt Meta-World with "
+                              "histories from `vintix collect`")
+        return Prompt(history.read(0, steps), history.env_seed)
 
 
 def _canonical(task: str) -> str | None:
@@ -171,13 +191,17 @@ def run_episodes(
     rows = []
     for start in range(0, len(runs), config.batch_envs):
         batch = runs[start : start + config.batch_envs]
+        prompts = None
+        if config.prompt_from is not None:
+            prompts = [load_prompt(config.prompt_from, spec.name, seed - config.first_seed, prompt_steps)
+                       for spec, seed in batch]
+            batch = [(spec, seed if p.env_seed is None else p.env_seed) for (spec, seed), p in zip(batch, prompts)]
         envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
         try:
             agent.reset([spec.name for spec, _ in batch], [env.action_space for env in envs])
             tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
-            if config.prompt_from is not None:
-                prompts = [load_prompt(config.prompt_from, spec.name, seed, prompt_steps) for spec, seed in batch]
-                agent.prompt(*([p[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
+            if prompts is not None:
+                agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
             results = play_shots(agent, envs, config.shots, progress)
         finally:
             for env in envs:
