@@ -33,12 +33,13 @@ def write_history(path, episode_lengths, history_id, obs_dim=39, act_dim=4, offs
         writer.append(obs, action, rows / 10, step_num)
 
 
-def write_task(root, name, histories, obs_dim=39, act_dim=4, **metadata):
-    """histories: one list of episode lengths per history."""
+def write_task(root, name, histories, obs_dim=39, act_dim=4, offset=0.0, **metadata):
+    """histories: one list of episode lengths per history; `offset` is added to every observation."""
     folder = task_directory(root, "metaworld", name)
     write_task_metadata(folder, name, obs_dim, act_dim, **metadata)
     for i, lengths in enumerate(histories):
-        write_history(folder / f"history-{i:04d}.h5", lengths, history_id=i, obs_dim=obs_dim, act_dim=act_dim)
+        write_history(folder / f"history-{i:04d}.h5", lengths, history_id=i, obs_dim=obs_dim, act_dim=act_dim,
+                      offset=offset)
     return folder
 
 
@@ -200,3 +201,16 @@ def test_window_longer_than_every_history_is_a_clear_error(dataset, tmp_path):
         WindowDataset(data, window_len=400)
     with pytest.raises(TrainingDataError, match="sparsity 3"):
         WindowDataset(data, window_len=100, sparsity=3)
+
+
+def test_training_takes_the_train_split_and_held_out_tasks_get_statistics_only(tmp_path):
+    root = tmp_path / "data"
+    write_task(root, "reach-v3", [[20] * 10])
+    write_task(root, "door-lock-v3", [[20] * 10], offset=5.0)  # an ML45 test task
+    data = load_training_data(root, stats_cache_dir=tmp_path / "cache")
+    assert [t.name for t in data.tasks] == ["reach-v3"]  # no window of a held-out task, ever
+    assert [n.task for n in data.task_norms] == ["reach-v3", "door-lock-v3"]
+    # Its own statistics: the constant offset of its observations is normalized away as in training.
+    assert data.held_out[0].obs_mean[5] == pytest.approx(data.tasks[0].norm.obs_mean[5] + 5.0, abs=1e-4)
+    every = load_training_data(root, tasks=[], stats_cache_dir=tmp_path / "cache")
+    assert [t.name for t in every.tasks] == ["door-lock-v3", "reach-v3"] and not every.held_out

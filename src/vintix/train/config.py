@@ -33,8 +33,10 @@ class TrainConfig:
     """model preset: tiny, small or paper"""
     model_overrides: dict[str, Any] = field(default_factory=dict)
     """ModelConfig fields to override, e.g. {mask_reward: true} for the AD-without-rewards ablation"""
-    tasks: list[str] = field(default_factory=list)
-    """train only on these task names / domains / splits (empty: every task in the dataset)"""
+    tasks: list[str] = field(default_factory=lambda: ["train"])
+    """train on these task names / domains / splits of the dataset (default: the train split, so held-out
+    tasks in the folder never leak into training; [] for every task). The dataset's other tasks of the
+    same groups get observation statistics only, for held-out evaluation"""
     window_len: int | None = None
     """steps per training window L (default: the model's context_len)"""
     batch_size: int = 8

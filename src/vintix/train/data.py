@@ -180,11 +180,14 @@ class TrainingData:
     root: Path
     tasks: list[TaskWindows]
     groups: list[GroupSpec]
+    held_out: list[TaskNorm] = field(default_factory=list)
+    """Statistics of the dataset's other tasks of the same groups, never trained on: a held-out task
+    then reaches the model normalized like the tasks it was trained on (DESIGN §6)."""
 
     @property
     def task_norms(self) -> list[TaskNorm]:
-        """What `Vintix` takes as ``task_norms`` (task index i = ``tasks[i]``)."""
-        return [t.norm for t in self.tasks]
+        """What `Vintix` takes as ``task_norms``: task index i = ``tasks[i]``, held-out tasks after them."""
+        return [t.norm for t in self.tasks] + self.held_out
 
     @property
     def fingerprint(self) -> str:
@@ -235,49 +238,48 @@ def _histories(task: TaskData) -> list[LearningHistory]:
 
 def load_training_data(
     root: str | os.PathLike[str],
-    tasks: Sequence[str] = (),
+    tasks: Sequence[str] = ("train",),
     expert_distillation: bool = False,
     expert_tail_fraction: float | None = None,
     stats_cache_dir: str | os.PathLike[str] | None = None,
 ) -> TrainingData:
     """Index a dataset root for training: registry groups, reward scales, cached obs statistics.
 
-    ``tasks`` restricts training to task names/domains/splits (`resolve_tasks`); empty = every task
-    with histories. The reward scale is the task JSON's ``reward_scale`` when it has one (the data
-    says how it was recorded), else the registry's; the group always comes from the registry.
+    ``tasks`` selects the tasks trained on (`resolve_tasks` names, domains or splits; default the
+    train split; empty = every task with histories). The dataset's other registry tasks in the same
+    groups get observation statistics only (`TrainingData.held_out`). The reward scale is the task
+    JSON's ``reward_scale`` when it has one (the data says how it was recorded), else the registry's;
+    the group always comes from the registry.
     """
     root = Path(root)
-    found = [t for t in find_tasks(root) if t.history_paths]
-    if tasks:
-        wanted = {spec.name for spec in resolve_tasks(list(tasks))}
-        found = [t for t in found if _registry_name(t) in wanted]
-    if not found:
+    # Every folder must be a registry task, or its split (train or held out) would be a guess.
+    found = [(t, _registry_spec(t)) for t in find_tasks(root) if t.history_paths]
+    wanted = {spec.name for spec in resolve_tasks(list(tasks))} if tasks else None
+    specs = [(task, spec) for task, spec in found if wanted is None or spec.name in wanted]
+    if not specs:
         raise TrainingDataError(f"{root}: no task folder with .h5 histories{' among ' + str(list(tasks)) if tasks else ''}; "
-                                "collect data first (`vintix collect`) or check --data")
-    specs = [(task, _registry_spec(task)) for task in found]
-    groups = _check_group_dims([(task, spec.group) for task, spec in specs])
+                                "collect data first (`vintix collect`) or check --data and the `tasks` setting")
+    trained_groups = {spec.group for _, spec in specs}
+    held_out = [(task, spec) for task, spec in found if (task, spec) not in specs and spec.group in trained_groups]
+    groups = _check_group_dims([(task, spec.group) for task, spec in specs + held_out])
     cache_dir = Path(stats_cache_dir) if stats_cache_dir is not None else default_stats_cache_dir()
     windows = []
     for task, spec in specs:
         histories = _histories(task)
-        mean, std = cached_obs_stats(task, histories, cache_dir)
-        scale = float(task.metadata.get("reward_scale", spec.reward_scale))
         tail = _tail_fraction(task, expert_distillation, expert_tail_fraction)
-        windows.append(TaskWindows(
-            spec.name, spec.group, TaskNorm(spec.name, spec.group, mean, std, scale),
-            [HistoryWindows(h, usable_bounds(h, tail)) for h in histories], task_fingerprint(task.history_paths),
-        ))
-    names = [w.name for w in windows]
+        windows.append(TaskWindows(spec.name, spec.group, _task_norm(task, spec, histories, cache_dir),
+                                   [HistoryWindows(h, usable_bounds(h, tail)) for h in histories],
+                                   task_fingerprint(task.history_paths)))
+    held_out_norms = [_task_norm(task, spec, _histories(task), cache_dir) for task, spec in held_out]
+    names = [n.task for n in [w.norm for w in windows] + held_out_norms]
     if len(set(names)) != len(names):
         raise TrainingDataError(f"{root}: several task folders hold the same registry task ({sorted(names)}); merge them")
-    return TrainingData(root, windows, groups)
+    return TrainingData(root, windows, groups, held_out_norms)
 
 
-def _registry_name(task: TaskData) -> str | None:
-    try:
-        return get_task(task.task_name).name
-    except UnknownTaskError:
-        return None
+def _task_norm(task: TaskData, spec: TaskSpec, histories: Sequence[LearningHistory], cache_dir: Path) -> TaskNorm:
+    mean, std = cached_obs_stats(task, histories, cache_dir)
+    return TaskNorm(spec.name, spec.group, mean, std, float(task.metadata.get("reward_scale", spec.reward_scale)))
 
 
 def _registry_spec(task: TaskData) -> TaskSpec:
