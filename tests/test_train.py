@@ -14,8 +14,18 @@ from typer.testing import CliRunner
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.model import CheckpointError, load_pretrained
-from vintix.train import TrainConfig, Trainer, WindowDataset, WindowLoss, build_optimizer, collate_windows, learning_rate
-from vintix.train.checkpoint import latest_checkpoint, model_directory, read_training_state
+from vintix.model.checkpoint import read_metadata
+from vintix.train import (
+    ConfigError,
+    TrainConfig,
+    Trainer,
+    WindowDataset,
+    WindowLoss,
+    build_optimizer,
+    collate_windows,
+    learning_rate,
+)
+from vintix.train.checkpoint import best_checkpoint_dir, latest_checkpoint, model_directory, read_training_state
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -156,3 +166,48 @@ def test_vintix_train_command_trains_and_resumes(metaworld_data, tmp_path):
     assert any((tmp_path / "run" / "tensorboard").iterdir())
     bad = CliRunner().invoke(app, [*command, "--set", "window_len=4096"])
     assert bad.exit_code == 2 and "exceeds the model's context_len" in bad.output
+
+
+def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_resume(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    scores = iter([0.2, 0.7, 0.4, 0.5, 0.9])  # what the scorer says at steps 2, 4, 6, 8, 10
+    seen = []
+
+    def scorer(model, tasks):
+        seen.append((tasks, model.training))
+        return next(scores)
+
+    config = make_config(metaworld_data, out, max_steps=6, select_every=2, log_every=2, checkpoint_every=2)
+    Trainer(config, scorer=scorer).run()
+    assert seen == [(["push-v3", "reach-v3"], False)] * 3  # default selection tasks: the ones trained on
+    best = load_pretrained(best_checkpoint_dir(out))
+    assert best.task_norms and read_metadata(best_checkpoint_dir(out))["extra"]["step"] == 4
+    assert logged(out, "in_context_score") == [0.2, 0.7, 0.4]
+    assert model_directory(out) == best_checkpoint_dir(out)  # a run folder means the model it recommends
+    assert latest_checkpoint(out).name == "step-00000006"  # resume still starts from the newest step
+
+    Trainer(dataclasses.replace(config, max_steps=10), scorer=scorer).run()  # resumed: 0.5 < 0.7 stays out
+    assert read_metadata(best_checkpoint_dir(out))["extra"]["step"] == 10
+    assert read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"] == 0.9
+
+
+def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):
+    with pytest.raises(ConfigError, match="multiple of log_every"):
+        make_config(metaworld_data, tmp_path / "run", select_every=3, log_every=2)
+    with pytest.raises(ConfigError, match="needs an in-context scorer"):
+        Trainer(make_config(metaworld_data, tmp_path / "run", select_every=2))
+
+
+def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path):
+    """The CLI wires the real scorer: cold-start shots on seeds no history used, score in the log."""
+    out = tmp_path / "run"
+    result = CliRunner().invoke(app, [
+        "train", "--data", str(metaworld_data), "--out", str(out), "--set", f"model_overrides={TEST_MODEL}",
+        "--set", "max_steps=2", "--set", "batch_size=2", "--set", "warmup_steps=1", "--set", "log_every=2",
+        "--set", "select_every=2", "--set", "select_shots=2", "--set", "select_seeds=1",
+        "--set", "select_tasks=[reach-v3]", "--set", "tensorboard=false", "--set", f"stats_cache_dir={tmp_path / 'c'}"])
+    assert result.exit_code == 0, result.output
+    assert "best in-context score" in result.output
+    score = logged(out, "in_context_score")[0]
+    assert score == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"], abs=1e-6)
+    assert -2.0 < score < 2.0

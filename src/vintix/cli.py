@@ -314,10 +314,12 @@ def train_command(
         "--set", metavar="FIELD=VALUE", help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
 ) -> None:
     """Train (or resume) a model by Algorithm Distillation. Many GPUs: torchrun --nproc-per-node N -m vintix.train (same options)."""
+    from vintix.evaluate import in_context_scorer
     from vintix.train import load_config, train
 
     try:
-        train(load_config(config, {"data": data and str(data), "out": out and str(out)}, settings))
+        train_config = load_config(config, {"data": data and str(data), "out": out and str(out)}, settings)
+        train(train_config, scorer=in_context_scorer(train_config))
     except VintixError as error:
         raise _fail(error)
 

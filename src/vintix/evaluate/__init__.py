@@ -1,6 +1,14 @@
 """Stage: many-shot in-context evaluation, normalized scores against the paper's or our references."""
 
-from vintix.evaluate.run import EvalConfig, evaluate, in_context_score, parse_variation, select_tasks, summarize
+from vintix.evaluate.run import (
+    EvalConfig,
+    evaluate,
+    in_context_score,
+    in_context_scorer,
+    parse_variation,
+    select_tasks,
+    summarize,
+)
 from vintix.evaluate.scores import REFERENCE_TABLES, Reference, ReferenceScoreError, reference
 from vintix.evaluate.summary import best_k_plateau, iqm, iqm_with_ci
 
@@ -12,6 +20,7 @@ __all__ = [
     "best_k_plateau",
     "evaluate",
     "in_context_score",
+    "in_context_scorer",
     "iqm",
     "iqm_with_ci",
     "parse_variation",

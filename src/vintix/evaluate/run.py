@@ -32,6 +32,8 @@ from vintix.evaluate.scores import Reference, missing_reference_note, reference
 from vintix.evaluate.summary import best_k_plateau
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, get_task, make_env, resolve_tasks
+from vintix.train.config import TrainConfig
+from vintix.train.trainer import Scorer
 
 EPISODES_FILE = "episodes.csv"
 RUN_FILE = "run.json"
@@ -299,10 +301,12 @@ def summarize(rows: Sequence[dict[str, Any]], table: str = "paper", plateau_shot
     return summary
 
 
-def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 6, seeds: int = 2, first_seed: int = 1000) -> float:
-    """Periodic training callback (DESIGN §6): mean normalized score (paper table) over the last half
-    of `shots` cold-start shots on `tasks`, `seeds` runs each. Use held-out tasks or goals (a
-    `first_seed` no training history used) so that the best checkpoint is the best *in context*."""
+def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 8, seeds: int = 3, first_seed: int = 1000,
+                     table: str = "ours") -> float:
+    """Mean normalized score (`table` reference) over the last half of `shots` cold-start shots on
+    `tasks`, `seeds` runs each: the converged in-context score. Use goals/seeds no training history
+    used (a high `first_seed`), so that the best checkpoint is the best *in context*, not the best
+    at recalling its training goals."""
     was_training = model.training
     model.eval()
     try:
@@ -310,5 +314,20 @@ def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 6, seeds:
         rows, _ = evaluate(Agent(model), config)
     finally:
         model.train(was_training)
-    late = [float(r["normalized_paper"]) for r in rows if r["shot"] > shots // 2]
+    late = [float(r[f"normalized_{table}"]) for r in rows if r["shot"] > shots // 2 and r[f"normalized_{table}"] != ""]
+    if not late:
+        raise VintixError(f"no '{table}' reference score for any of {list(tasks)}: the in-context score cannot be "
+                          f"normalized; choose select_reference 'paper' or select_tasks with scores")
     return float(np.mean(late))
+
+
+def in_context_scorer(config: TrainConfig) -> Scorer | None:
+    """The trainer's checkpoint-selection scorer for `config` (None when it selects no checkpoints)."""
+    if not config.select_every:
+        return None
+
+    def score(model: Vintix, tasks: Sequence[str]) -> float:
+        return in_context_score(model, tasks, config.select_shots, config.select_seeds, config.select_first_seed,
+                                config.select_reference)
+
+    return score

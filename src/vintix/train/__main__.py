@@ -19,8 +19,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", dest="settings", action="append", default=[], metavar="FIELD=VALUE",
                         help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")
     args = parser.parse_args(argv)
+    from vintix.evaluate import in_context_scorer  # the entry point wires the stage above training in
+
     try:
-        train(load_config(args.config, {"data": args.data, "out": args.out}, args.settings))
+        config = load_config(args.config, {"data": args.data, "out": args.out}, args.settings)
+        train(config, scorer=in_context_scorer(config))
     except VintixError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

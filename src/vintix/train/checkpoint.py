@@ -6,6 +6,10 @@
 torch RNG state) and ``trainer.json`` (step, tokens seen, optimizer hyperparameters, the config).
 The directory is assembled under ``step-N.partial`` and renamed when complete, so a checkpoint
 directory without ``.partial`` is always whole.
+
+``<out>/checkpoints/best/`` (a model checkpoint only) holds the model with the best in-context score
+so far when training selects checkpoints (``select_every``); its ``model.json`` ``extra`` says the
+step and score. Pruning never touches it, and a run folder loads as it when it exists.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ CHECKPOINTS = "checkpoints"
 STATE_FILE = "trainer.json"
 OPTIMIZER_FILE = "optimizer.safetensors"
 RNG_FILE = "rng.safetensors"
+BEST = "best"
 _STEP_DIR = re.compile(r"step-(\d+)")
 
 
@@ -52,12 +57,40 @@ def latest_checkpoint(out: str | os.PathLike[str]) -> Path | None:
     return found[-1] if found else None
 
 
+def best_checkpoint_dir(out: str | os.PathLike[str]) -> Path:
+    """Where a run keeps its model with the best in-context score."""
+    return Path(out) / CHECKPOINTS / BEST
+
+
+def best_score(out: str | os.PathLike[str]) -> float | None:
+    """The in-context score of a run's best checkpoint, None before it has one."""
+    directory = best_checkpoint_dir(out)
+    if not (directory / CONFIG_FILE).is_file():
+        return None
+    return float(read_metadata(directory)["extra"]["in_context_score"])
+
+
+def save_best_checkpoint(out: str | os.PathLike[str], model: Vintix, extra: dict[str, Any]) -> Path:
+    """Replace the run's best checkpoint with `model` (assembled aside, then renamed into place)."""
+    directory = best_checkpoint_dir(out)
+    partial = directory.with_name(directory.name + PARTIAL_SUFFIX)
+    shutil.rmtree(partial, ignore_errors=True)
+    save_pretrained(model, partial, extra=extra)
+    if directory.exists():
+        shutil.rmtree(directory)
+    os.replace(partial, directory)
+    return directory
+
+
 def model_directory(path: str | os.PathLike[str]) -> Path:
     """What `load_pretrained` should read for `path`: `path` itself when it holds a model, else the
-    newest checkpoint of the training run at `path` (so `runs/x` means its latest model)."""
+    training run at `path`'s best checkpoint (`best_checkpoint_dir`) if it selected one, else its
+    newest (so `runs/x` means the model that run recommends)."""
     path = Path(path)
     if (path / CONFIG_FILE).is_file():
         return path
+    if (best_checkpoint_dir(path) / CONFIG_FILE).is_file():
+        return best_checkpoint_dir(path)
     latest = latest_checkpoint(path)
     if latest is None:
         raise CheckpointError(

@@ -83,6 +83,20 @@ class TrainConfig:
     """optimizer steps between log lines (CSV, TensorBoard, progress bar)"""
     tensorboard: bool = True
     """also write TensorBoard event files under <out>/tensorboard"""
+    select_every: int = 0
+    """optimizer steps between cold-start in-context evaluations that keep the best model in
+    <out>/checkpoints/best (0: never); a multiple of log_every, so the score lands in the log"""
+    select_tasks: list[str] = field(default_factory=list)
+    """tasks of that evaluation (empty: the tasks trained on), run on env seeds no history was collected
+    on: for Meta-World, hidden goals training never saw"""
+    select_shots: int = 8
+    """episodes per selection run; the score is the mean normalized score of the last half of them"""
+    select_seeds: int = 3
+    """selection runs per task (env seeds select_first_seed, select_first_seed + 1, ...)"""
+    select_first_seed: int = 1000
+    """env seed of the first selection run (collection seeds are 32-bit hashes, so these are unseen)"""
+    select_reference: str = "ours"
+    """reference table of the selection score: 'ours' (our measured demonstrators) or 'paper'"""
     stats_cache_dir: str | None = None
     """where normalization statistics are cached (default: ~/.cache/vintix/norm-stats)"""
 
@@ -91,12 +105,18 @@ class TrainConfig:
             raise ConfigError(f"model preset {self.model!r} is unknown; choose one of {sorted(PRESETS)}")
         positive = {"batch_size": self.batch_size, "grad_accum": self.grad_accum, "max_steps": self.max_steps,
                     "episode_sparsity": self.episode_sparsity, "checkpoint_every": self.checkpoint_every,
-                    "keep_checkpoints": self.keep_checkpoints, "log_every": self.log_every}
+                    "keep_checkpoints": self.keep_checkpoints, "log_every": self.log_every,
+                    "select_shots": self.select_shots, "select_seeds": self.select_seeds}
         bad = [f"{k}={v}" for k, v in positive.items() if v < 1]
         if bad:
             raise ConfigError(f"these fields must be >= 1: {', '.join(bad)}")
         if self.task_sampling not in ("uniform", "volume"):
             raise ConfigError(f"task_sampling must be 'uniform' or 'volume', got {self.task_sampling!r}")
+        if self.select_every < 0 or self.select_every % self.log_every:
+            raise ConfigError(f"select_every must be 0 or a positive multiple of log_every ({self.log_every}), "
+                              f"got {self.select_every}")
+        if self.select_reference not in ("ours", "paper"):
+            raise ConfigError(f"select_reference must be 'ours' or 'paper', got {self.select_reference!r}")
         if self.device not in ("auto", "cpu", "cuda"):
             raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
         if self.window_len is not None and self.window_len > self.model_config().context_len:

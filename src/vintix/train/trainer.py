@@ -29,6 +29,8 @@ from vintix.atomic import atomic_write_text
 from vintix.model.checkpoint import load_pretrained
 from vintix.model.model import Vintix, count_parameters
 from vintix.train.checkpoint import (
+    best_checkpoint_dir,
+    best_score,
     check_resumable,
     checkpoint_dir,
     latest_checkpoint,
@@ -36,13 +38,18 @@ from vintix.train.checkpoint import (
     prune_checkpoints,
     read_rng,
     read_training_state,
+    save_best_checkpoint,
     save_training_checkpoint,
 )
-from vintix.train.config import TrainConfig
+from vintix.train.config import ConfigError, TrainConfig
 from vintix.train.data import Batch, TrainingData, WindowBatches, WindowDataset, collate_windows, load_training_data
 
 Callback = Callable[[Vintix, int], None]
-"""Called on rank 0 as ``callback(model, step)`` after an optimizer step (e.g. in-context evaluation)."""
+"""Called on rank 0 as ``callback(model, step)`` after an optimizer step."""
+Scorer = Callable[[Vintix, Sequence[str]], float]
+"""``scorer(model, tasks)``: the model's cold-start in-context score on ``tasks`` (higher is better),
+which chooses the best checkpoint; `vintix.evaluate.in_context_scorer` makes one from a TrainConfig.
+It lives above training (it runs envs and the agent), so the trainer takes it as an argument."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -188,7 +195,7 @@ class MetricsLog:
     """One CSV row per log step (and TensorBoard scalars); a resumed run first drops rows past its step."""
 
     def __init__(self, out: Path, groups: Sequence[str], resume_step: int, tensorboard: bool) -> None:
-        self.columns = ["step", "tokens", "loss", "lr", "grad_norm", "tokens_per_s", "mfu",
+        self.columns = ["step", "tokens", "loss", "lr", "grad_norm", "tokens_per_s", "mfu", "in_context_score",
                         *[f"loss_{g}" for g in groups]]
         self.path = out / "log.csv"
         kept = []
@@ -213,7 +220,8 @@ class MetricsLog:
         if self.tensorboard is not None:
             for key, value in row.items():
                 if key not in ("step", "tokens") and math.isfinite(value):
-                    self.tensorboard.add_scalar(key.replace("loss_", "loss/"), value, int(row["step"]))
+                    tag = key.replace("loss_", "loss/").replace("in_context_score", "in_context/score")
+                    self.tensorboard.add_scalar(tag, value, int(row["step"]))
 
     def close(self) -> None:
         """Flush and close the files."""
@@ -231,12 +239,19 @@ class Trainer:
 
     ``callbacks`` are ``(every, fn)`` pairs: ``fn(model, step)`` runs on rank 0 after every
     ``every``-th optimizer step with the model in eval mode, inside a forked RNG so it cannot
-    change the rest of the run (the hook for periodic in-context evaluation, DESIGN §6).
+    change the rest of the run. ``scorer`` runs the same way every ``config.select_every`` steps on
+    the selection tasks; a score above the best so far replaces ``checkpoints/best`` (DESIGN §6:
+    training loss does not tell when a model has in-context skill).
     """
 
-    def __init__(self, config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = ()) -> None:
+    def __init__(self, config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (),
+                 scorer: Scorer | None = None) -> None:
+        if config.select_every and scorer is None:
+            raise ConfigError("select_every needs an in-context scorer: train with `vintix train`, or pass "
+                              "scorer=vintix.evaluate.in_context_scorer(config)")
         self.config = config
         self.callbacks = list(callbacks)
+        self.scorer = scorer
         self.out = Path(config.out)
         self.dist, self.device = init_distributed(config.device)
         self.data = self._load_data()
@@ -246,7 +261,7 @@ class Trainer:
         self.step, self.tokens = 0, 0
         resume = latest_checkpoint(self.out)
         if resume is not None:
-            check_resumable(resume, self.model.config, self.data.groups, [t.name for t in self.data.tasks])
+            check_resumable(resume, self.model.config, self.data.groups, [n.task for n in self.data.task_norms])
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
             self.model = load_pretrained(resume)
         self.model.to(self.device).train()
@@ -263,6 +278,8 @@ class Trainer:
             self._restore(resume)
         self.flops = {g.name: flops_per_token(self.model, g.name, self.window_len) for g in self.data.groups}
         self.resumed_from = resume
+        self.select_tasks = config.select_tasks or [t.name for t in self.data.tasks]
+        self.best_score = best_score(self.out)
 
     def _load_data(self) -> TrainingData:
         # Rank 0 computes (and caches) the normalization statistics; the others then read the cache.
@@ -321,12 +338,27 @@ class Trainer:
         if self.dist.is_main:
             state = {"step": self.step, "tokens": self.tokens, "world_size": self.dist.world_size,
                      "replica_checksums": checksums, "train_config": dataclasses.asdict(self.config)}
-            extra = {"step": self.step, "tokens": self.tokens, "dataset": str(self.data.root),
-                     "dataset_fingerprint": self.data.fingerprint, "train_config": dataclasses.asdict(self.config)}
-            save_training_checkpoint(directory, self.model, self.optimizer, self.param_names, rng, state, extra)
+            save_training_checkpoint(directory, self.model, self.optimizer, self.param_names, rng, state,
+                                     self._model_extra())
             prune_checkpoints(self.out, self.config.keep_checkpoints)
         self.dist.barrier()
         return directory
+
+    def _model_extra(self) -> dict[str, object]:
+        """What a saved model records about its training."""
+        return {"step": self.step, "tokens": self.tokens, "dataset": str(self.data.root),
+                "dataset_fingerprint": self.data.fingerprint, "trained_tasks": [t.name for t in self.data.tasks],
+                "train_config": dataclasses.asdict(self.config)}
+
+    def _select(self) -> float:
+        """Score the model in context (rank 0 only); keep it as ``checkpoints/best`` if it beats the best."""
+        score = float(self._on_rank0_in_eval_mode(lambda: self.scorer(self.model, self.select_tasks)))  # type: ignore[misc]
+        if self.best_score is None or score > self.best_score:
+            self.best_score = score
+            save_best_checkpoint(self.out, self.model, {
+                **self._model_extra(), "in_context_score": score, "select_tasks": self.select_tasks,
+                "select_reference": self.config.select_reference})
+        return score
 
     def _loader(self) -> torch.utils.data.DataLoader:
         cfg = self.config
@@ -384,6 +416,11 @@ class Trainer:
             self.step += 1
             self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
             progress.update(1)
+            score = math.nan
+            if cfg.select_every and self.step % cfg.select_every == 0 and self.dist.is_main:
+                started = time.perf_counter()
+                score = self._select()
+                last_time += time.perf_counter() - started  # evaluation time is not training time
             if self.step % cfg.log_every == 0 or self.step == stop:
                 if self.dist.world_size > 1:
                     dist.all_reduce(sums)
@@ -393,12 +430,13 @@ class Trainer:
                 row = {"step": self.step, "tokens": self.tokens,
                        "loss": float(sums[:, 0].sum() / sums[:, 1].sum()), "lr": lr, "grad_norm": float(grad_norm),
                        "tokens_per_s": (self.tokens - last_tokens) / elapsed,
-                       "mfu": float(sums[:, 2].sum() / elapsed / peak),
+                       "mfu": float(sums[:, 2].sum() / elapsed / peak), "in_context_score": score,
                        **{f"loss_{g}": (per_group[i] if sums[i, 1] else math.nan) for i, g in enumerate(groups)}}
                 if log is not None:
                     log.write(row)
                     progress.set_postfix(loss=f"{row['loss']:.4f}", tok_s=f"{row['tokens_per_s']:,.0f}",
-                                         mfu=f"{row['mfu']:.0%}")
+                                         mfu=f"{row['mfu']:.0%}",
+                                         **({"best": f"{self.best_score:.3f}"} if self.best_score is not None else {}))
                 sums.zero_()
                 last_time, last_tokens = time.perf_counter(), self.tokens
             self._run_callbacks()
@@ -409,25 +447,31 @@ class Trainer:
         del batches  # shuts DataLoader workers down
         if log is not None:
             log.close()
+            best = (f", best in-context score {self.best_score:.3f} in {best_checkpoint_dir(self.out)}"
+                    if self.best_score is not None else "")
             print(f"step {self.step}: checkpoints under {self.out / 'checkpoints'}, log {log.path}"
-                  + (f", TensorBoard {self.out / 'tensorboard'}" if cfg.tensorboard else ""))
+                  + (f", TensorBoard {self.out / 'tensorboard'}" if cfg.tensorboard else "") + best)
         return last_dir if last_dir is not None else checkpoint_dir(self.out, self.step)
 
     def _run_callbacks(self) -> None:
         due = [fn for every, fn in self.callbacks if self.step % every == 0]
-        if not due or not self.dist.is_main:
-            return
+        if due and self.dist.is_main:
+            self._on_rank0_in_eval_mode(lambda: [fn(self.model, self.step) for fn in due])
+
+    def _on_rank0_in_eval_mode(self, work: Callable[[], object]) -> object:
+        """Run `work` with the model in eval mode inside a forked RNG, so it cannot change the run."""
         self.model.eval()
-        with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
-            for fn in due:
-                fn(self.model, self.step)
-        self.model.train()
+        try:
+            with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
+                return work()
+        finally:
+            self.model.train()
 
 
-def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = ()) -> Path:
+def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (), scorer: Scorer | None = None) -> Path:
     """Run (or resume) a whole training run; under ``torchrun`` every rank calls this."""
     try:
-        return Trainer(config, callbacks).run()
+        return Trainer(config, callbacks, scorer).run()
     finally:
         if dist.is_initialized():
             dist.destroy_process_group()
