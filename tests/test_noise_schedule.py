@@ -23,7 +23,12 @@ def test_curvature_above_one_keeps_noise_high_for_longer():
     assert np.all(flat_start[1:] > linear[1:]) and np.all(steep_start[1:] < linear[1:])
 
 
-@pytest.mark.parametrize("bad", [dict(curvature=0.0), dict(noise_free_fraction=1.0), dict(noise_free_fraction=-0.1)])
+def test_a_noise_free_fraction_of_one_is_the_demonstrator_alone():
+    """Expert data for the expert-distillation baseline: no step is noised."""
+    assert not NoiseSchedule(noise_free_fraction=1.0).epsilon(np.arange(100), 100).any()
+
+
+@pytest.mark.parametrize("bad", [dict(curvature=0.0), dict(noise_free_fraction=1.1), dict(noise_free_fraction=-0.1)])
 def test_invalid_parameters_are_rejected(bad):
     with pytest.raises(ValueError):
         NoiseSchedule(**bad)

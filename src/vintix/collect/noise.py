@@ -19,16 +19,19 @@ class NoiseSchedule:
     curvature: float = 1.0
     """p: > 1 keeps ε high for longer, then drops it (for returns that rise early); < 1 the opposite."""
     noise_free_fraction: float = 0.0
-    """f: the fraction of the history, at its end, played by the demonstrator alone."""
+    """f: the fraction of the history, at its end, played by the demonstrator alone (1: all of it,
+    expert data for the expert-distillation baseline)."""
 
     def __post_init__(self) -> None:
         if self.curvature <= 0:
             raise ValueError(f"noise schedule curvature p must be > 0, got {self.curvature}")
-        if not 0 <= self.noise_free_fraction < 1:
-            raise ValueError(f"noise_free_fraction f must lie in [0, 1), got {self.noise_free_fraction}")
+        if not 0 <= self.noise_free_fraction <= 1:
+            raise ValueError(f"noise_free_fraction f must lie in [0, 1], got {self.noise_free_fraction}")
 
     def epsilon(self, step: np.ndarray | int, total_steps: int) -> np.ndarray:
         """ε at step index `step` (0-based) of a history of `total_steps` steps."""
+        if self.noise_free_fraction == 1:
+            return np.zeros(np.shape(step))
         progress = np.asarray(step, dtype=np.float64) / ((1 - self.noise_free_fraction) * total_steps)
         p = self.curvature
         return np.where(progress <= 1, (1 - np.clip(progress, 0, 1) ** p) ** (1 / p), 0.0)
