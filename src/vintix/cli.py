@@ -400,7 +400,8 @@ def bench_infer(
 
 @app.command("eval")
 def eval_command(
-    checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (model.json + model.safetensors), or a training run: its newest checkpoint")],
+    checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (model.json + model.safetensors), a training "
+                                             "run (its best checkpoint, else its newest), or a shipped model: cpu-suite")],
     tasks: Annotated[list[str], typer.Option(help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
     shots: Annotated[int, typer.Option(help="episodes per run")] = 50,
@@ -420,16 +421,15 @@ def eval_command(
     import torch
     from rich.progress import Progress
 
-    from vintix.agent import Agent
-    from vintix.evaluate import EvalConfig, evaluate, parse_variation, summarize
-    from vintix.train.checkpoint import model_directory
+    from vintix.agent import Agent, resolve_checkpoint
+    from vintix.evaluate import EvalConfig, evaluate, parse_variation, shot_curves, shots_to_show, summarize
 
     torch.set_num_threads(threads)
     try:
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
                             prompt_steps=prompt_steps, batch_envs=batch_envs)
-        checkpoint = model_directory(checkpoint)
+        checkpoint = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(checkpoint, device)
         with Progress(console=console) as progress:
             rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress)
@@ -440,12 +440,21 @@ def eval_command(
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task")
     for column in ("task", "variation", "shot 1", f"shot {shots}", f"best {min(10, shots)}-shot plateau", "from shot",
-                   "paper Vintix"):
+                   "paper's Vintix (paper table)"):
         table.add_column(column, justify="left" if column in ("task", "variation") else "right")
     for s in summary:
         table.add_row(s["task"], s["variation"] or "—", f"{s['first']:.2f}", f"{s['last']:.2f}", f"{s['plateau']:.2f}",
                       str(s["plateau_from"]), f"{s['paper_vintix']:.2f}")
     console.print(table)
+    curves = shot_curves(rows, reference)
+    shown = shots_to_show(shots)
+    per_shot = Table(title=f"in context: mean normalized score ({reference} reference) at each shot, over tasks and runs")
+    per_shot.add_column("domain")
+    for shot in shown:
+        per_shot.add_column(f"shot {shot}", justify="right")
+    for domain, curve in curves.items():
+        per_shot.add_row(domain, *(f"{curve[shot - 1]:.2f}" if shot <= len(curve) else "" for shot in shown))
+    console.print(per_shot)
     console.print(f"wrote {len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}")
 
 

@@ -2,5 +2,7 @@
 
 from vintix.agent.agent import Agent, AgentInputError, AgentTask, resolve_task
 from vintix.agent.cache import KVCache, banded_forward, cached_backbone
+from vintix.agent.pretrained import resolve_checkpoint, shipped_models
 
-__all__ = ["Agent", "AgentInputError", "AgentTask", "KVCache", "banded_forward", "cached_backbone", "resolve_task"]
+__all__ = ["Agent", "AgentInputError", "AgentTask", "KVCache", "banded_forward", "cached_backbone", "resolve_checkpoint",
+           "resolve_task", "shipped_models"]

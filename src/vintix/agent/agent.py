@@ -22,9 +22,9 @@ import numpy as np
 import torch
 
 from vintix.agent.cache import KVCache, cached_backbone
+from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import load_pretrained
-from vintix.train.checkpoint import model_directory
 from vintix.model.model import Vintix
 from vintix.tasks import get_task, make_env
 
@@ -171,9 +171,10 @@ class Agent:
 
     @classmethod
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
-        """An agent around the model saved in `directory`: a checkpoint (see `vintix.model.save_pretrained`)
-        or a training run's folder, whose newest checkpoint it loads."""
-        return cls(load_pretrained(model_directory(directory), device))
+        """An agent around the model saved in `directory`: a checkpoint (see `vintix.model.save_pretrained`),
+        a training run's folder (its best checkpoint, else its newest), or a shipped model's name
+        (`vintix.agent.shipped_models`, e.g. ``"cpu-suite"``)."""
+        return cls(load_pretrained(resolve_checkpoint(directory), device))
 
     @property
     def device(self) -> torch.device:

@@ -7,6 +7,8 @@ from vintix.evaluate.run import (
     in_context_scorer,
     parse_variation,
     select_tasks,
+    shot_curves,
+    shots_to_show,
     summarize,
 )
 from vintix.evaluate.scores import REFERENCE_TABLES, Reference, ReferenceScoreError, reference
@@ -26,5 +28,7 @@ __all__ = [
     "parse_variation",
     "reference",
     "select_tasks",
+    "shot_curves",
+    "shots_to_show",
     "summarize",
 ]

@@ -301,6 +301,26 @@ def summarize(rows: Sequence[dict[str, Any]], table: str = "paper", plateau_shot
     return summary
 
 
+def shot_curves(rows: Sequence[dict[str, Any]], table: str = "paper") -> dict[str, np.ndarray]:
+    """Per domain (with split and variation, e.g. 'industrial_benchmark test'): the mean normalized
+    score at each shot over all its tasks and runs, shots as far as every run went."""
+    by_domain: dict[str, dict[int, list[float]]] = {}
+    for row in rows:
+        if row[f"normalized_{table}"] == "":
+            continue
+        name = " ".join(part for part in (row["domain"], row["split"], row["variation"]) if part)
+        by_domain.setdefault(name, {}).setdefault(int(row["shot"]), []).append(float(row[f"normalized_{table}"]))
+    return {name: np.array([np.mean(shots[s]) for s in sorted(shots)]) for name, shots in sorted(by_domain.items())}
+
+
+def shots_to_show(shots: int, columns: int = 12) -> list[int]:
+    """Every shot when they fit in `columns`, else the first three and then a spread up to the last."""
+    if shots <= columns:
+        return list(range(1, shots + 1))
+    spread = np.unique(np.geomspace(4, shots, columns - 3).round().astype(int))
+    return [1, 2, 3, *spread.tolist()]
+
+
 def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 8, seeds: int = 3, first_seed: int = 1000,
                      table: str = "ours") -> float:
     """Mean normalized score (`table` reference) over the last half of `shots` cold-start shots on

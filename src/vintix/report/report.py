@@ -163,7 +163,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     if goal:
         lines.append(f"\nMeta-World goal protocol: {'; '.join(sorted(goal))}.\n")
 
-    lines += ["\n## Per domain\n", "| domain | " + " | ".join(f"{r.label}: shot 1 | {r.label}: converged" for r in results)
+    lines += ["\n## Per domain\n", f"| domain ({table}-normalized) | " + " | ".join(f"{r.label}: shot 1 | {r.label}: converged" for r in results)
               + " |", "|---|" + "---|---|" * len(results)]
     domains = sorted({d for r in results for d in r.domains.values()})
     for domain in domains:
@@ -184,7 +184,8 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     for domain in domains:
         lines.append(f"![{domain}](figures/domain-{_slug(domain)}.png)")
 
-    lines += ["\n## Per task\n", "| task | label | runs | shot 1 | converged | from shot | paper Vintix |",
+    lines += ["\n## Per task\n", f"| task ({table}-normalized) | label | runs | shot 1 | converged | from shot | "
+              "paper's Vintix |",
               "|---|---|---|---|---|---|---|"]
     bars = []
     for variant in sorted({v for r in results for v in r.scores}):

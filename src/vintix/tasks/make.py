@@ -8,6 +8,7 @@ tasks are gymnasium's own ids.
 from __future__ import annotations
 
 import inspect
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -71,8 +72,12 @@ def _make_mujoco(spec: TaskSpec, seed: int | None, viscosity: float | None = Non
 def _make_metaworld(spec: TaskSpec, seed: int | None, episode_length: int | None = None,
                     resample_goal_each_episode: bool = False, render_mode: str | None = None) -> gym.Env:
     length = episode_length or spec.episode_length
-    return gym.make(gymnasium_id(spec), seed=seed, episode_length=length, max_episode_steps=length,
-                    resample_goal_each_episode=resample_goal_each_episode, render_mode=render_mode)
+    with warnings.catch_warnings():
+        # The hidden goal is a Box with equal bounds (always 0) by design; gymnasium's env checker
+        # warns about it on every make, which would bury a command's own output.
+        warnings.filterwarnings("ignore", message=".*maximum and minimum values are equal.*")
+        return gym.make(gymnasium_id(spec), seed=seed, episode_length=length, max_episode_steps=length,
+                        resample_goal_each_episode=resample_goal_each_episode, render_mode=render_mode)
 
 
 def _make_industrial_benchmark(spec: TaskSpec, seed: int | None, reward_type: str = "classic") -> gym.Env:
