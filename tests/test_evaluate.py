@@ -25,6 +25,7 @@ from vintix.evaluate import (
     parse_variation,
     reference,
     select_tasks,
+    shots_to_show,
 )
 from vintix.model import save_pretrained
 
@@ -36,6 +37,8 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
                                       "--out", str(tmp_path / "results")])
     assert result.exit_code == 0, result.output
     assert "wrote 8 episodes" in result.output
+    # The per-shot table: one row per domain, a column per shot.
+    assert "at each shot" in result.output and "metaworld train" in result.output and "shot 2" in result.output
     rows = list(csv.DictReader((tmp_path / "results" / "episodes.csv").open()))
     assert sorted({(r["task"], r["seed"], r["shot"]) for r in rows}) == sorted(
         (t, s, k) for t in ("reach-v3", "InvertedPendulum-v5") for s in "01" for k in "12")
@@ -121,3 +124,9 @@ def test_in_context_score_is_a_training_callback_that_restores_train_mode():
     model = tiny_model().train()
     score = in_context_score(model, ["InvertedPendulum-v5"], shots=2, seeds=2)
     assert model.training and np.isfinite(score) and -1.0 < score < 1.0
+
+
+def test_the_per_shot_table_shows_every_shot_or_a_spread_that_keeps_the_first_and_last():
+    assert shots_to_show(10) == list(range(1, 11))
+    many = shots_to_show(100)
+    assert many[:3] == [1, 2, 3] and many[-1] == 100 and len(many) <= 12 and many == sorted(set(many))
