@@ -1,6 +1,9 @@
 """The `vintix` command line."""
 
 import csv
+import os
+import subprocess
+import sys
 
 from typer.testing import CliRunner
 
@@ -95,3 +98,15 @@ def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_
     result = runner.invoke(app, ["collect", "--task", "Humanoid-v5", "--out", str(tmp_path / "data")])
     assert result.exit_code == 2 and "no trained demonstrator for 'Humanoid-v5'" in result.output
     assert not (tmp_path / "data").exists()
+
+
+def test_python_dash_m_vintix_runs_the_cli():
+    # Same package as this test run (the source tree may be first on PYTHONPATH, not installed).
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "mujoco"],
+                            capture_output=True, text=True, env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "11 tasks" in result.stdout and "Pusher-v5" in result.stdout
+    usage = subprocess.run([sys.executable, "-m", "vintix", "--help"], capture_output=True, text=True, env=env,
+                           timeout=120)
+    assert usage.returncode == 0 and "Usage: vintix" in usage.stdout
