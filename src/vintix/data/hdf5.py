@@ -9,6 +9,11 @@ A history file holds groups of at most 10,000 consecutive steps named ``"<start>
 inclusive), each with ``proprio_observation`` float32 (n, obs_dim), ``action`` float32 (n, act_dim),
 ``reward`` float32 (n,) and ``step_num`` int32 (n,). Row i is (o_i, a_i taken at o_i, r_i after a_i);
 ``step_num == 0`` marks an episode start and a file starts with one.
+
+Our writer stores every dataset in chunks of whole rows with HDF5's Fletcher-32 checksum filter, so
+a block damaged on disk fails to read (a `DatasetError` naming the file) instead of feeding wrong
+numbers to training. Chunking and filters are invisible to readers of the official format, and files
+without checksums (the published dataset) read as before.
 """
 
 from __future__ import annotations
@@ -33,6 +38,10 @@ from vintix.errors import DatasetError
 
 MAX_GROUP_ROWS = 10_000
 """Most rows a step group may hold in the official format."""
+
+CHECKSUM_CHUNK_ROWS = 1_000
+"""Rows per checksummed HDF5 chunk: a training window (~1,000 rows) touches one or two chunks per
+dataset, and a damaged byte makes only its own chunk unreadable."""
 
 DTYPES: dict[str, np.dtype] = {
     "proprio_observation": np.dtype(np.float32),
@@ -63,13 +72,18 @@ _HDF5_FAILURES = (OSError, RuntimeError)
 
 @contextmanager
 def translate_hdf5_errors(path: Path) -> Iterator[None]:
-    """Turn HDF5 library failures, raised deep inside h5py, into a DatasetError that names the file."""
+    """Turn HDF5 library failures, raised deep inside h5py, into a DatasetError that names the file.
+
+    A block that fails its Fletcher-32 checksum surfaces here too (h5py raises OSError, "filter
+    returned failure during read"), like a truncated file or overwritten metadata.
+    """
     try:
         yield
     except _HDF5_FAILURES as err:
-        raise DatasetError(
-            path, f"not a readable HDF5 file (truncated or corrupted?): {err}; re-collect or delete it"
-        ) from err
+        # HDF5 reports a failed checksum (or decompression) only as a filter failure.
+        what = ("a data block failed its checksum (corrupted on disk)" if "filter returned failure" in str(err)
+                else "not a readable HDF5 file (truncated or corrupted?)")
+        raise DatasetError(path, f"{what}: {err}; re-collect or delete it") from err
 
 
 def open_hdf5(path: PathLike) -> h5py.File:
@@ -321,7 +335,10 @@ class LearningHistoryWriter:
         start, n = self._flushed, self._filled
         group = self._file.create_group(f"{start}-{start + n - 1}")
         for key, buffer in self._buffer.items():
-            group.create_dataset(key, data=buffer[:n])
+            rows = buffer[:n]
+            # fletcher32 needs a chunked layout; chunks of whole rows keep row-range reads cheap.
+            group.create_dataset(key, data=rows, chunks=(min(n, CHECKSUM_CHUNK_ROWS), *rows.shape[1:]),
+                                 fletcher32=True)
         self._flushed += n
         self._filled = 0
 
