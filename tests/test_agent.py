@@ -10,7 +10,7 @@ from gymnasium.spaces import Box
 
 import vintix
 from inference_model import one_torch_thread, random_inputs, tiny_model  # noqa: F401  (autouse fixture)
-from vintix.agent import Agent, AgentInputError
+from vintix.agent import Agent, AgentInputError, AgentOutputError
 from vintix.errors import UnknownTaskError
 from vintix.model import save_pretrained
 
@@ -88,6 +88,16 @@ def test_actions_are_clipped_to_each_envs_bounds():
     reach, pendulum = play(agent, inputs, 10)
     assert np.abs(reach).max() == pytest.approx(1.0) and np.all(np.abs(reach) <= 1.0)
     assert np.abs(pendulum).max() == pytest.approx(3.0) and np.all(np.abs(pendulum) <= 3.0)
+
+
+def test_a_model_that_computes_nan_raises_instead_of_returning_nan_actions():
+    model = tiny_model()
+    with torch.no_grad():
+        model.heads["mujoco-invertedpendulum"][-1].bias.fill_(float("nan"))  # a diverged head
+    agent = Agent(model)
+    agent.reset(["reach-v3", "InvertedPendulum-v5"])
+    with pytest.raises(AgentOutputError, match="env 1 \\(InvertedPendulum-v5\\): the model's action is NaN/inf"):
+        agent.act([np.zeros(39), np.zeros(4)], [0.0, 0.0], [True, True])
 
 
 def test_a_held_out_task_uses_its_groups_pooled_normalization():

@@ -37,6 +37,15 @@ def test_truncated_weights_are_reported(tmp_path):
         load_pretrained(tmp_path)
 
 
+def test_nan_weights_of_a_diverged_run_are_refused(tmp_path):
+    model = make_model()
+    with torch.no_grad():
+        next(model.parameters()).view(-1)[0] = float("nan")
+    save_pretrained(model, tmp_path)
+    with pytest.raises(CheckpointError, match="1 of .* tensors hold NaN/inf .*use an earlier one"):
+        load_pretrained(tmp_path)
+
+
 def test_weights_of_another_config_are_refused(tmp_path):
     save_pretrained(make_model(), tmp_path / "small")
     save_pretrained(make_model(mlp_dim=32), tmp_path / "other")

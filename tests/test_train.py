@@ -6,6 +6,7 @@ import csv
 import dataclasses
 import shutil
 
+import h5py
 import pytest
 import torch
 from safetensors.torch import load_file
@@ -17,6 +18,7 @@ from vintix.model import CheckpointError, load_pretrained
 from vintix.model.checkpoint import read_metadata
 from vintix.train import (
     ConfigError,
+    NonFiniteLossError,
     TrainConfig,
     Trainer,
     WindowDataset,
@@ -25,7 +27,13 @@ from vintix.train import (
     collate_windows,
     learning_rate,
 )
-from vintix.train.checkpoint import best_checkpoint_dir, latest_checkpoint, model_directory, read_training_state
+from vintix.train.checkpoint import (
+    best_checkpoint_dir,
+    latest_checkpoint,
+    list_checkpoints,
+    model_directory,
+    read_training_state,
+)
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -211,3 +219,44 @@ def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path)
     score = logged(out, "in_context_score")[0]
     assert score == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"], abs=1e-6)
     assert -2.0 < score < 2.0
+
+
+def diverge(model, step):
+    """What a numerical blow-up leaves behind: one NaN weight (a callback runs right after a step)."""
+    with torch.no_grad():
+        model.ln_f.weight[0] = float("nan")
+
+
+def test_a_non_finite_loss_stops_training_with_the_last_good_checkpoint_intact(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    # Checkpoints at steps 2 and 4; the weights turn NaN after step 3, so step 4's loss is NaN.
+    config = make_config(metaworld_data, out, max_steps=6, checkpoint_every=2)
+    with pytest.raises(NonFiniteLossError, match=r"step 4: the loss or its gradient is not finite.*last good "
+                                                 r"checkpoint is .*step-00000002.*lower lr"):
+        Trainer(config, callbacks=[(3, diverge)]).run()
+    assert [p.name for p in list_checkpoints(out)] == ["step-00000002"]
+    load_pretrained(latest_checkpoint(out))  # finite: it loads
+    assert len(logged(out)) == 3
+
+
+def test_parameters_that_turned_nan_are_never_checkpointed(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    config = make_config(metaworld_data, out, max_steps=4, checkpoint_every=2)
+    with pytest.raises(NonFiniteLossError, match="step 2: the model's parameters hold NaN/inf, so no checkpoint"):
+        Trainer(config, callbacks=[(2, diverge)]).run()
+    assert list_checkpoints(out) == []
+
+
+def test_vintix_train_on_data_with_nan_rewards_refuses_to_start(metaworld_data, tmp_path):
+    data = tmp_path / "data"
+    shutil.copytree(metaworld_data, data)
+    path = data / "metaworld" / "push-v3" / "history-0001.h5"
+    with h5py.File(path, "r+") as f:
+        f["0-599/reward"][17] = float("nan")
+    result = CliRunner().invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "run"),
+                                      "--set", f"model_overrides={TEST_MODEL}", "--set", "max_steps=2",
+                                      "--set", f"stats_cache_dir={tmp_path / 'c'}"])
+    assert result.exit_code == 2, result.output
+    output = " ".join(result.output.split())
+    assert "history-0001.h5: NaN/inf in reward at row 17" in output and "vintix data validate" in output
+    assert not (tmp_path / "run" / "checkpoints").exists()

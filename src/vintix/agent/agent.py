@@ -33,6 +33,11 @@ class AgentInputError(VintixError, ValueError):
     """An observation, reward or prompt the agent cannot take (wrong shape, NaN or inf)."""
 
 
+class AgentOutputError(VintixError, ArithmeticError):
+    """The model computed a NaN or inf action (damaged weights, or a numerical overflow): the agent
+    raises instead of sending it, as clipping cannot make NaN an action within the env's bounds."""
+
+
 @dataclass(frozen=True)
 class AgentTask:
     """How the agent treats one env: group, normalization, action bounds."""
@@ -260,7 +265,8 @@ class Agent:
         """One step of every env: actions (clipped to each env's bounds), one array per env.
 
         ``prev_rewards[i]`` is the reward env ``i`` returned for the agent's previous action; it is
-        ignored where ``episode_starts[i]`` (the first observation of an episode).
+        ignored where ``episode_starts[i]`` (the first observation of an episode). A NaN/inf action
+        from the model raises `AgentOutputError`: every action returned is finite and within bounds.
         """
         if self.cache is None:
             raise RuntimeError("call agent.reset(tasks) before agent.act(...)")
@@ -282,6 +288,13 @@ class Agent:
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, batch in self._groups.items():
             action = torch.clamp(self.model.head(group, hidden[batch.envs]), batch.action_low, batch.action_high)
+            finite = torch.isfinite(action).all(dim=1)  # clamp passes NaN through
+            if not finite.all():
+                env = int(batch.envs[~finite][0])
+                raise AgentOutputError(
+                    f"env {env} ({self.tasks[env].task}): the model's action is NaN/inf for finite inputs; its "
+                    "weights are damaged or it overflowed. Load another checkpoint (an earlier one of the run)"
+                )
             self._prev_action[group] = action
             for i, a in zip(batch.envs.tolist(), action.cpu().numpy()):
                 actions[i] = a

@@ -106,5 +106,12 @@ def load_pretrained(directory: str | os.PathLike[str], device: str | torch.devic
             f"{weights_path} does not fit the model in {CONFIG_FILE}: missing {missing[:5]}, unexpected "
             f"{unexpected[:5]}, wrong shape {sorted(wrong_shape)[:5]}"
         )
+    # A diverged run's weights are NaN: refuse them here rather than let a model act with NaN.
+    non_finite = sorted(k for k, v in weights.items() if v.is_floating_point() and not torch.isfinite(v).all())
+    if non_finite:
+        raise CheckpointError(
+            f"{weights_path}: {len(non_finite)} of {len(weights)} tensors hold NaN/inf (e.g. {non_finite[:3]}); the "
+            "training run diverged before this checkpoint: use an earlier one"
+        )
     model.load_state_dict(weights)
     return model.to(device).eval()

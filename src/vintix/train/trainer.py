@@ -26,6 +26,7 @@ from torch import nn
 from tqdm import tqdm
 
 from vintix.atomic import atomic_write_text
+from vintix.errors import VintixError
 from vintix.model.checkpoint import load_pretrained
 from vintix.model.model import Vintix, count_parameters
 from vintix.train.checkpoint import (
@@ -50,6 +51,11 @@ Scorer = Callable[[Vintix, Sequence[str]], float]
 """``scorer(model, tasks)``: the model's cold-start in-context score on ``tasks`` (higher is better),
 which chooses the best checkpoint; `vintix.evaluate.in_context_scorer` makes one from a TrainConfig.
 It lives above training (it runs envs and the agent), so the trainer takes it as an argument."""
+
+
+class NonFiniteLossError(VintixError, RuntimeError):
+    """Training met a NaN/inf loss or gradient and stopped before it reached the weights (the message
+    names the step and the last good checkpoint)."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -332,6 +338,9 @@ class Trainer:
         """
         rng = self._gathered_rng()
         checksums = self._replica_checksums()
+        if not all(math.isfinite(x) for c in checksums for x in c):  # every rank sees the same gathered sums
+            raise NonFiniteLossError(f"step {self.step}: the model's parameters hold NaN/inf, so no checkpoint was "
+                                     f"written; {self._last_good()}")
         if any(c != checksums[0] for c in checksums):
             raise RuntimeError(f"DDP replicas diverged at step {self.step}: parameter checksums {checksums}")
         directory = checkpoint_dir(self.out, self.step)
@@ -343,6 +352,13 @@ class Trainer:
             prune_checkpoints(self.out, self.config.keep_checkpoints)
         self.dist.barrier()
         return directory
+
+    def _last_good(self) -> str:
+        """Where the run can go on from, for the errors that stop it."""
+        last = latest_checkpoint(self.out)
+        where = f"the last good checkpoint is {last}" if last is not None else "no checkpoint was written yet"
+        return (f"{where}. Re-running the same command repeats the same steps, so first lower lr (now "
+                f"{self.config.lr:g}), e.g. --set lr={self.config.lr / 3:.2g}, or lengthen warmup_steps")
 
     def _model_extra(self) -> dict[str, object]:
         """What a saved model records about its training."""
@@ -411,6 +427,15 @@ class Trainer:
                     row[2] += n * self.window_len * self.flops[group]
                     start += n
             grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
+            # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.
+            if not torch.isfinite(grad_norm):
+                progress.close()
+                if log is not None:
+                    log.close()
+                raise NonFiniteLossError(
+                    f"step {self.step + 1}: the loss or its gradient is not finite (last micro-batch loss "
+                    f"{float(losses.detach().mean()):.4g}, gradient norm {float(grad_norm):.4g}); training stopped "
+                    f"before the optimizer step, so no NaN reached the weights; {self._last_good()}")
             self.optimizer.step()
             self.optimizer.zero_grad(set_to_none=True)
             self.step += 1
