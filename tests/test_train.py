@@ -32,6 +32,7 @@ from vintix.train.checkpoint import (
     latest_checkpoint,
     list_checkpoints,
     model_directory,
+    prune_checkpoints,
     read_training_state,
 )
 
@@ -260,3 +261,70 @@ def test_vintix_train_on_data_with_nan_rewards_refuses_to_start(metaworld_data, 
     output = " ".join(result.output.split())
     assert "history-0001.h5: NaN/inf in reward at row 17" in output and "vintix data validate" in output
     assert not (tmp_path / "run" / "checkpoints").exists()
+
+
+def truncate(path):
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+DAMAGE = {
+    "truncated optimizer": lambda c: truncate(c / "optimizer.safetensors"),
+    "truncated rng": lambda c: truncate(c / "rng.safetensors"),
+    "truncated weights": lambda c: truncate(c / "model.safetensors"),
+    "garbage trainer.json": lambda c: (c / "trainer.json").write_text("{\"step\": 4, garbage"),
+    "trainer.json of another shape": lambda c: (c / "trainer.json").write_text("{\"step\": \"4\"}"),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGE))
+def test_resume_passes_over_a_damaged_newest_checkpoint_and_still_equals_the_straight_run(
+        metaworld_data, tmp_path, capsys, damage):
+    straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+
+    def config(out):
+        return make_config(metaworld_data, out, max_steps=6, checkpoint_every=2)
+
+    Trainer(config(straight)).run()
+    Trainer(config(resumed)).run(until_step=4)
+    DAMAGE[damage](resumed / "checkpoints" / "step-00000004")
+    capsys.readouterr()
+    trainer = Trainer(config(resumed))
+    note = " ".join(capsys.readouterr().out.split())
+    assert "step-00000004 is damaged" in note and "resuming from" in note and trainer.step == 2
+    trainer.run()
+    for name in ("model.safetensors", "optimizer.safetensors"):
+        a = load_file(str(latest_checkpoint(straight) / name))
+        b = load_file(str(latest_checkpoint(resumed) / name))
+        assert all(torch.equal(a[k], b[k]) for k in a), name
+    assert [p.name for p in list_checkpoints(resumed)] == ["step-00000002", "step-00000004", "step-00000006"]
+
+
+def test_a_run_without_one_intact_checkpoint_names_the_folder_to_delete(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    config = make_config(metaworld_data, out, max_steps=2, checkpoint_every=2)
+    Trainer(config).run()
+    truncate(out / "checkpoints" / "step-00000002" / "optimizer.safetensors")
+    with pytest.raises(CheckpointError, match=r"no intact checkpoint to resume from .*step-00000002: .*"
+                                              r"optimizer.safetensors: unreadable.*Delete .*checkpoints to train"):
+        Trainer(config)
+
+
+def test_evaluating_a_run_whose_newest_checkpoint_is_damaged_names_the_intact_one(metaworld_data, tmp_path):
+    from vintix.agent import Agent
+
+    out = tmp_path / "run"
+    Trainer(make_config(metaworld_data, out, max_steps=4, checkpoint_every=2)).run()
+    truncate(out / "checkpoints" / "step-00000004" / "model.safetensors")
+    with pytest.raises(CheckpointError, match=r"step-00000004/model.safetensors: unreadable.*newest intact checkpoint "
+                                              r"is .*step-00000002: pass it with --checkpoint, or delete"):
+        Agent.from_pretrained(out)
+    assert Agent.from_pretrained(out / "checkpoints" / "step-00000002").model.task_norms
+
+
+def test_pruning_drops_checkpoints_past_the_current_step(tmp_path):
+    for step in (1, 2, 3, 9):  # 9: a damaged checkpoint that resume passed over at step 3
+        directory = tmp_path / "checkpoints" / f"step-{step:08d}"
+        directory.mkdir(parents=True)
+        (directory / "trainer.json").write_text("{}")
+    prune_checkpoints(tmp_path, keep=2, step=3)
+    assert [p.name for p in list_checkpoints(tmp_path)] == ["step-00000002", "step-00000003"]

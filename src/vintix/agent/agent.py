@@ -24,9 +24,10 @@ import torch
 from vintix.agent.cache import KVCache, cached_backbone
 from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
-from vintix.model.checkpoint import load_pretrained
+from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix
 from vintix.tasks import get_task, make_env
+from vintix.train.checkpoint import intact_alternative_hint
 
 
 class AgentInputError(VintixError, ValueError):
@@ -178,8 +179,14 @@ class Agent:
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
         """An agent around the model saved in `directory`: a checkpoint (see `vintix.model.save_pretrained`),
         a training run's folder (its best checkpoint, else its newest), or a shipped model's name
-        (`vintix.agent.shipped_models`, e.g. ``"cpu-suite"``)."""
-        return cls(load_pretrained(resolve_checkpoint(directory), device))
+        (`vintix.agent.shipped_models`, e.g. ``"cpu-suite"``). A damaged checkpoint of a training run
+        raises CheckpointError naming the run's newest intact one: evaluating another step than the
+        one asked for is the user's choice, never a silent fallback."""
+        resolved = resolve_checkpoint(directory)
+        try:
+            return cls(load_pretrained(resolved, device))
+        except CheckpointError as error:
+            raise CheckpointError(f"{error}{intact_alternative_hint(resolved)}") from error
 
     @property
     def device(self) -> torch.device:

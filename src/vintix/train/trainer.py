@@ -39,6 +39,7 @@ from vintix.train.checkpoint import (
     prune_checkpoints,
     read_rng,
     read_training_state,
+    resumable_checkpoint,
     save_best_checkpoint,
     save_training_checkpoint,
 )
@@ -265,7 +266,7 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.model = Vintix(config.model_config(), self.data.groups, self.data.task_norms)
         self.step, self.tokens = 0, 0
-        resume = latest_checkpoint(self.out)
+        resume = resumable_checkpoint(self.out, note=print if self.dist.is_main else None)
         if resume is not None:
             check_resumable(resume, self.model.config, self.data.groups, [n.task for n in self.data.task_norms])
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
@@ -349,7 +350,7 @@ class Trainer:
                      "replica_checksums": checksums, "train_config": dataclasses.asdict(self.config)}
             save_training_checkpoint(directory, self.model, self.optimizer, self.param_names, rng, state,
                                      self._model_extra())
-            prune_checkpoints(self.out, self.config.keep_checkpoints)
+            prune_checkpoints(self.out, self.config.keep_checkpoints, self.step)
         self.dist.barrier()
         return directory
 
