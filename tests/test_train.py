@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import re
 import shutil
 
 import h5py
@@ -198,6 +199,25 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
     Trainer(dataclasses.replace(config, max_steps=10), scorer=scorer).run()  # resumed: 0.5 < 0.7 stays out
     assert read_metadata(best_checkpoint_dir(out))["extra"]["step"] == 10
     assert read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"] == 0.9
+
+
+@pytest.mark.parametrize(("setting", "message"), [
+    ("max_steps=abc", "TrainConfig.max_steps must be int, got 'abc'"),
+    ("lr=-1", "out of range: lr=-1.0"),
+    ("lr=.nan", "TrainConfig.lr must be float, got nan"),
+    ("tasks=reach-v3", r"TrainConfig.tasks must be list\[str\], got 'reach-v3'"),
+    ("num_workers=-1", "must be >= 0: num_workers=-1"),
+    ("window_len=0", "must be >= 1: window_len=0"),
+    ("model_overrides={n_heads: 0}", "model_overrides: sizes must be >= 1 .*n_heads=0"),
+    ("model_overrides={mlp_dim: big}", "ModelConfig.mlp_dim must be int, got 'big'"),
+])
+def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_path, setting, message):
+    result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),
+                                      "--set", setting])
+    assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output  # no traceback
+    output = " ".join(result.output.split())
+    assert re.search(message, output) and "--set values are read as YAML" in output, output
+    assert not (tmp_path / "run").exists()
 
 
 def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):

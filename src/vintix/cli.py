@@ -11,6 +11,7 @@ from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import track
 from rich.table import Table
 
@@ -31,7 +32,8 @@ console = Console(width=None if sys.stdout.isatty() else 160)
 
 
 def _fail(error: Exception) -> typer.Exit:
-    console.print(f"[red]error:[/red] {error}")
+    # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup.
+    console.print(f"[red]error:[/red] {escape(str(error))}")
     return typer.Exit(code=2)
 
 

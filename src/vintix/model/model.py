@@ -21,6 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from vintix.errors import UnknownTaskError
+from vintix.fields import check_field_types
 
 # ----------------------------------------------------------------------------------------------
 # Configuration
@@ -65,6 +66,15 @@ class ModelConfig:
         return self.obs_emb_dim + self.act_emb_dim + self.rew_emb_dim
 
     def __post_init__(self) -> None:
+        check_field_types(self, ValueError)
+        sizes = {"n_layers": self.n_layers, "n_heads": self.n_heads, "obs_emb_dim": self.obs_emb_dim,
+                 "act_emb_dim": self.act_emb_dim, "rew_emb_dim": self.rew_emb_dim, "mlp_dim": self.mlp_dim,
+                 "context_len": self.context_len}
+        small = [f"{k}={v}" for k, v in sizes.items() if v < 1] + ([f"head_layers={self.head_layers}"]
+                                                                  if self.head_layers < 0 else [])
+        if small or not 0 <= self.dropout < 1 or not self.std_floor > 0:
+            raise ValueError(f"sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor > 0; got "
+                             f"{', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}")
         if self.d_model % self.n_heads:
             raise ValueError(
                 f"d_model = {self.obs_emb_dim}+{self.act_emb_dim}+{self.rew_emb_dim} = "
