@@ -416,8 +416,8 @@ def eval_command(
     label: Annotated[Optional[str], typer.Option(help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
     device: str = "cpu",
-    threads: Annotated[int, typer.Option(help="torch CPU threads; 1 suits small models, whose steps are many tiny ops "
-                                         "that a second thread slows down on a busy machine")] = 1,
+    threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
+                                         "tiny ops that a second thread slows down on a busy machine")] = 1,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
