@@ -110,3 +110,17 @@ def test_python_dash_m_vintix_runs_the_cli():
     usage = subprocess.run([sys.executable, "-m", "vintix", "--help"], capture_output=True, text=True, env=env,
                            timeout=120)
     assert usage.returncode == 0 and "Usage: vintix" in usage.stdout
+
+
+def test_collect_into_a_folder_made_with_other_settings_says_so(tmp_path):
+    command = ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "100", "--out", str(tmp_path)]
+    assert runner.invoke(app, command).exit_code == 0
+    result = runner.invoke(app, [*command, "--seed", "3"])
+    assert result.exit_code == 2 and "holds histories made with other settings" in " ".join(result.output.split())
+    assert "collected 0 steps" not in result.output
+
+
+def test_collect_with_zero_envs_per_batch_is_a_named_error(tmp_path):
+    result = runner.invoke(app, ["collect", "--task", "reach-v3", "--envs-per-batch", "0", "--out", str(tmp_path)])
+    assert result.exit_code == 2 and "envs_per_batch=0" in result.output
+    assert not any(tmp_path.iterdir())

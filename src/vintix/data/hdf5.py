@@ -414,9 +414,16 @@ class LearningHistory:
         return self._layout
 
     @property
+    def attrs(self) -> dict[str, Any]:
+        """The file's root attributes as Python values (our writer's ``attrs``; published files have none)."""
+        with translate_hdf5_errors(self.path):
+            return {key: value.item() if isinstance(value, np.generic) else value
+                    for key, value in self._file.attrs.items()}
+
+    @property
     def env_seed(self) -> int | None:
         """Seed of the env the history was collected on (our files), None for files without it."""
-        seed = self._file.attrs.get("env_seed")
+        seed = self.attrs.get("env_seed")
         return None if seed is None else int(seed)
 
     @property
