@@ -181,13 +181,17 @@ def demonstrator_train(
 @demonstrator_app.command("eval")
 def demonstrator_eval(
     task: Annotated[list[str], typer.Option(help="task, domain or split; repeat for several")],
-    episodes: Annotated[int, typer.Option(help="episodes per policy, each in its own env (seed + i)")] = 20,
-    seed: int = 0,
-    table: Annotated[Optional[Path], typer.Option(help="score table to update (default: the package's scores.csv)")] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="episodes per policy, each in its own env (seed + i)")] = 20,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
+    out: Annotated[Path, typer.Option(help="score table to add the measured rows to (created if missing)")] = Path(
+        "demonstrator-scores.csv"),
+    update_package_table: Annotated[bool, typer.Option(
+        "--update-package-table", help="also rewrite the package's reference table (demonstrators/scores.csv), "
+        "which normalizes every 'ours' result")] = False,
 ) -> None:
-    """Score demonstrators and a uniform-random policy; record both in the score table."""
+    """Score demonstrators and a uniform-random policy; record both in a score table (--out)."""
     from vintix.demonstrators import load_demonstrator
-    from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores
+    from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores, scores_path
 
     try:
         specs = [t for t in resolve_tasks(task) if t.domain != "bidexhands"]
@@ -209,7 +213,9 @@ def demonstrator_eval(
                        _score(spec.paper_expert.mean, spec.paper_expert.std),
                        _score(spec.paper_random.mean, spec.paper_random.std), f"{normalized:.2f}")
     console.print(result)
-    console.print(f"wrote {len(rows)} scores to {record_scores(rows, table)}")
+    console.print(f"wrote {len(rows)} scores to {record_scores(rows, out)}")
+    if update_package_table:
+        console.print(f"updated the package's reference table {record_scores(rows, scores_path())}")
 
 
 @demonstrator_app.command("list")
