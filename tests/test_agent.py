@@ -10,7 +10,7 @@ from gymnasium.spaces import Box
 
 import vintix
 from inference_model import one_torch_thread, random_inputs, tiny_model  # noqa: F401  (autouse fixture)
-from vintix.agent import Agent, AgentInputError, AgentOutputError
+from vintix.agent import Agent, AgentInputError, AgentOutputError, AgentStateError
 from vintix.errors import UnknownTaskError
 from vintix.model import save_pretrained
 
@@ -133,3 +133,21 @@ def test_wrong_observation_dim_or_non_finite_input_is_a_clear_error():
         agent.act([np.zeros(39), np.zeros(4)], [0.0, np.inf], [False, False])
     # a reward at an episode start is ignored, whatever it is
     assert len(agent.act([np.zeros(39), np.zeros(4)], [np.nan, 0.0], [True, False])) == 2
+
+
+def test_misuse_of_the_agent_is_a_named_error():
+    agent = Agent(tiny_model())
+    for call in (lambda: agent.act([np.zeros(39)], [0.0], [True]), lambda: agent.keep([0]),
+                 lambda: agent.prompt([np.zeros((2, 39))], [np.zeros((2, 4))], [np.zeros(2)], [np.arange(2)])):
+        with pytest.raises(AgentStateError, match="call agent.reset"):
+            call()
+    with pytest.raises(AgentInputError, match="at least one task"):
+        agent.reset([])
+    with pytest.raises(AgentInputError, match="2 tasks but 1 action spaces"):
+        agent.reset(["reach-v3", "push-v3"], [UNBOUNDED[4]])
+    agent.reset(["reach-v3"], [UNBOUNDED[4]])
+    window = agent.model.config.context_len
+    with pytest.raises(AgentInputError, match=f"a prompt of {window + 1} steps after 0 does not fit the model's "
+                                              f"{window}-step window"):
+        agent.prompt([np.zeros((window + 1, 39))], [np.zeros((window + 1, 4))], [np.zeros(window + 1)],
+                     [np.arange(window + 1)])

@@ -124,3 +124,30 @@ def test_collect_with_zero_envs_per_batch_is_a_named_error(tmp_path):
     result = runner.invoke(app, ["collect", "--task", "reach-v3", "--envs-per-batch", "0", "--out", str(tmp_path)])
     assert result.exit_code == 2 and "envs_per_batch=0" in result.output
     assert not any(tmp_path.iterdir())
+
+
+def test_an_output_path_under_a_file_is_named_not_a_traceback(tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    result = runner.invoke(app, ["check-envs", "InvertedPendulum-v5", "--episodes", "1", "--out", str(blocker / "x.csv")])
+    assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output
+    assert f"{blocker} is a file, not a directory" in " ".join(result.output.split())
+    result = runner.invoke(app, ["collect", "--task", "reach-v3", "--steps", "10", "--out", str(blocker)])
+    assert result.exit_code == 2 and "is a file, not a directory" in " ".join(result.output.split())
+
+
+def test_commands_given_only_tasks_without_a_simulator_say_so():
+    for command in (["check-envs", "Hand-Pen"], ["demonstrator", "eval", "--task", "Hand-Pen"]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 2 and "need NVIDIA IsaacGym" in " ".join(result.output.split()), result.output
+
+
+def test_counts_and_presets_out_of_range_fail_before_any_work():
+    for command, message in ((["check-envs", "InvertedPendulum-v5", "--episodes", "0"], "Invalid value for '--episodes'"),
+                             (["check-envs", "InvertedPendulum-v5", "--seed", "-1"], "Invalid value for '--seed'"),
+                             (["bench", "train", "huge"], "unknown model preset 'huge'"),
+                             (["bench", "infer", "tiny", "--envs", "0"], "Invalid value for '--envs'"),
+                             (["demonstrator", "train", "--task", "InvertedPendulum-v5", "--timesteps", "0"],
+                              "Invalid value for '--timesteps'")):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 2 and message in result.output, (command, result.output)

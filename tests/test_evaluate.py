@@ -60,6 +60,8 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
     (["--shots", "0"], "shots=0"), (["--seeds", "0"], "seeds=0"), (["--seeds", "-1"], "seeds=-1"),
     (["--batch-envs", "0"], "batch_envs=0"), (["--first-seed", "-1"], "first_seed=-1"),
     (["--prompt-steps", "-5"], "prompt_steps=-5"), (["--threads", "0"], "Invalid value for '--threads'"),
+    (["--reference", "bogus"], "unknown reference table 'bogus'"), (["--device", "tpu"], "device 'tpu'"),
+    (["--variation", "viscosity=nan"], "variation"),
 ])
 def test_eval_settings_out_of_range_are_named_before_any_env_runs(tmp_path, option, message):
     save_pretrained(tiny_model(), tmp_path / "ckpt")
@@ -75,6 +77,8 @@ def test_eval_config_checks_types_and_ranges_in_python_too():
         EvalConfig(shots=0)
     with pytest.raises(EvalConfigError, match="EvalConfig.seeds must be int, got '3'"):
         EvalConfig(seeds="3")
+    with pytest.raises(EvalConfigError, match="no tasks to evaluate"):
+        EvalConfig(tasks=[",", ""])
 
 
 def test_normalization_formula_and_expert_not_above_random_raises():

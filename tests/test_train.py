@@ -220,6 +220,13 @@ def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a GPU")
+def test_training_on_cuda_without_a_gpu_is_a_named_error(tmp_path):
+    result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),
+                                      "--set", "device=cuda"])
+    assert result.exit_code == 2 and "torch sees no GPU" in result.output, result.output
+
+
 def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):
     with pytest.raises(ConfigError, match="multiple of log_every"):
         make_config(metaworld_data, tmp_path / "run", select_every=3, log_every=2)

@@ -34,6 +34,10 @@ class AgentInputError(VintixError, ValueError):
     """An observation, reward or prompt the agent cannot take (wrong shape, NaN or inf)."""
 
 
+class AgentStateError(VintixError, RuntimeError):
+    """An agent used out of order (acting, prompting or keeping envs before `Agent.reset`)."""
+
+
 class AgentOutputError(VintixError, ArithmeticError):
     """The model computed a NaN or inf action (damaged weights, or a numerical overflow): the agent
     raises instead of sending it, as clipping cannot make NaN an action within the env's bounds."""
@@ -201,9 +205,9 @@ class Agent:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
         `action_spaces` (default: each task's registry env's action space)."""
         if not tasks:
-            raise ValueError("reset needs at least one task")
+            raise AgentInputError("reset needs at least one task")
         if action_spaces is not None and len(action_spaces) != len(tasks):
-            raise ValueError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces")
+            raise AgentInputError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces; give one per task")
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
         self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces)]
         self._regroup()
@@ -221,10 +225,10 @@ class Agent:
         order); the others are dropped with their context. The kept envs act exactly as they would
         have: this lets a batch shrink as its envs finish, instead of stepping them to no purpose."""
         if self.cache is None:
-            raise RuntimeError("call agent.reset(tasks) before agent.keep(...)")
+            raise AgentStateError("call agent.reset(tasks) before agent.keep(...)")
         envs = list(envs)
         if not envs or not all(0 <= i < len(self.tasks) for i in envs):
-            raise ValueError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
+            raise AgentInputError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
         # Each env's previous action lives in its group's rows; gather them per old env index first.
         previous: dict[int, torch.Tensor] = {}
         for group, batch in self._groups.items():
@@ -276,7 +280,7 @@ class Agent:
         from the model raises `AgentOutputError`: every action returned is finite and within bounds.
         """
         if self.cache is None:
-            raise RuntimeError("call agent.reset(tasks) before agent.act(...)")
+            raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
         starts = np.asarray(episode_starts, dtype=bool).reshape(-1)
         rewards = np.where(starts, 0.0, np.asarray(prev_rewards, dtype=np.float64).reshape(-1))
@@ -315,10 +319,15 @@ class Agent:
         """Feed stored steps (rows of a learning history, one array ``[T, ...]`` per env, the same T
         for every env and at most the window) as context before acting: a prompted, not cold, start."""
         if self.cache is None:
-            raise RuntimeError("call agent.reset(tasks) before agent.prompt(...)")
+            raise AgentStateError("call agent.reset(tasks) before agent.prompt(...)")
         steps = len(step_nums[0])
         if any(len(s) != steps for s in step_nums):
             raise AgentInputError("every env's prompt must have the same number of steps")
+        if self.cache.length + steps > self.cache.window:  # one chunk must not wrap around the sliding window
+            raise AgentInputError(
+                f"a prompt of {steps} steps after {self.cache.length} does not fit the model's {self.cache.window}-step "
+                "window; prompt with at most the window (vintix eval: a smaller --prompt-steps)"
+            )
         for i, task in enumerate(self.tasks):
             spec = self.model.groups[task.group]
             self._check("prompt observations", i, np.asarray(observations[i]), (steps, spec.obs_dim))

@@ -46,6 +46,9 @@ def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
     unknown = set(settings) - PLAN_KEYS - SCHEDULE_KEYS
     if unknown:
         raise CollectionError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(PLAN_KEYS | SCHEDULE_KEYS)}")
+    needed = sorted({"histories", "steps"} - set(settings))
+    if needed:
+        raise CollectionError(f"{where}: no {' or '.join(needed)} (set them under 'defaults:' or the task)")
     try:  # the plan and schedule check their own types and ranges (no int() that would truncate 2.5)
         schedule = NoiseSchedule(**{k: v for k, v in settings.items() if k in SCHEDULE_KEYS})
         return CollectionPlan(task=task, schedule=schedule, **{k: v for k, v in settings.items() if k in PLAN_KEYS})

@@ -33,7 +33,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from vintix.atomic import atomic_write_text, partial_path, publish
+from vintix.atomic import atomic_write_text, make_parent_dirs, partial_path, publish
 from vintix.errors import DatasetError
 
 MAX_GROUP_ROWS = 10_000
@@ -254,9 +254,10 @@ class LearningHistoryWriter:
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
         if not (_is_dim(obs_dim) and _is_dim(act_dim)):
-            raise ValueError(f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
-        if not 1 <= chunk_size <= MAX_GROUP_ROWS:
-            raise ValueError(f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got {chunk_size}")
+            raise DatasetError(self.path, f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
+        if not (_is_dim(chunk_size) and chunk_size <= MAX_GROUP_ROWS):
+            raise DatasetError(self.path, f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got "
+                               f"{chunk_size!r}")
         self.obs_dim, self.act_dim, self.chunk_size = obs_dim, act_dim, chunk_size
         self._partial = partial_path(self.path)
         # Rows wait in fixed buffers of one group, so single-step appends cost a copy, not an HDF5 write.
@@ -265,7 +266,7 @@ class LearningHistoryWriter:
         self._filled = 0
         self._flushed = 0
         self._last_step = -1
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        make_parent_dirs(self.path)
         self._file: h5py.File | None = h5py.File(self._partial, "w")
         self._file.attrs.update(attrs or {})
 
@@ -282,7 +283,7 @@ class LearningHistoryWriter:
         and step_num counting 0, 1, 2, ... within episodes starting from 0 at the file's first row.
         """
         if self._file is None:
-            raise ValueError(f"{self.path}: append() after close() or abort()")
+            raise DatasetError(self.path, "append() after close() or abort(); open a new writer")
         rows = self._checked_rows(obs, action, reward, step_num)
         n, offset = len(rows["step_num"]), 0
         while offset < n:

@@ -77,7 +77,7 @@ class EvalConfig:
         if bad:
             raise EvalConfigError(f"{', '.join(bad)}: shots, seeds, batch_envs and prompt_steps must be >= 1, "
                                   "first_seed >= 0")
-        if not self.tasks:
+        if not [name for selector in self.tasks for name in selector.split(",") if name.strip()]:
             raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
 
 

@@ -19,7 +19,7 @@ import torch
 from safetensors.torch import load_file, save_file
 
 from vintix.atomic import atomic_path, atomic_write_text
-from vintix.errors import VintixError
+from vintix.errors import DeviceError, VintixError
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
 
 WEIGHTS_FILE = "model.safetensors"
@@ -87,9 +87,23 @@ def build_model(meta: dict[str, Any]) -> Vintix:
     return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
 
 
+def torch_device(name: str | torch.device) -> torch.device:
+    """`name` as a torch device this machine has; a DeviceError says what to use instead."""
+    try:
+        device = torch.device(name)
+    except (RuntimeError, TypeError) as error:
+        raise DeviceError(f"unknown device {name!r}; use cpu or cuda") from error
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise DeviceError(f"device {name!r} requested but torch sees no GPU; use cpu")
+    if device.type not in ("cpu", "cuda"):
+        raise DeviceError(f"device {name!r} is not supported; use cpu or cuda")
+    return device
+
+
 def load_pretrained(directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Vintix:
     """The model saved in `directory`, in eval mode, on `device`."""
     directory = Path(directory)
+    device = torch_device(device)  # before reading gigabytes of weights
     model = build_model(read_metadata(directory))
     weights_path = directory / WEIGHTS_FILE
     if not weights_path.is_file():

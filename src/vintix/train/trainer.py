@@ -26,7 +26,7 @@ from torch import nn
 from tqdm import tqdm
 
 from vintix.atomic import atomic_write_text
-from vintix.errors import VintixError
+from vintix.errors import DeviceError, VintixError
 from vintix.model.checkpoint import load_pretrained
 from vintix.model.model import Vintix, count_parameters
 from vintix.train.checkpoint import (
@@ -178,7 +178,7 @@ def resolve_device(name: str, local_rank: int) -> torch.device:
     """'auto' picks CUDA when available; a torchrun rank takes its LOCAL_RANK's GPU."""
     use_cuda = name == "cuda" or (name == "auto" and torch.cuda.is_available())
     if use_cuda and not torch.cuda.is_available():
-        raise RuntimeError("device 'cuda' requested but torch sees no GPU; use device=cpu or auto")
+        raise DeviceError("device 'cuda' requested but torch sees no GPU; use device=cpu or auto")
     return torch.device("cuda", local_rank) if use_cuda else torch.device("cpu")
 
 
