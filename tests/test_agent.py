@@ -146,6 +146,8 @@ def test_misuse_of_the_agent_is_a_named_error():
     with pytest.raises(AgentInputError, match="2 tasks but 1 action spaces"):
         agent.reset(["reach-v3", "push-v3"], [UNBOUNDED[4]])
     agent.reset(["reach-v3"], [UNBOUNDED[4]])
+    with pytest.raises(AgentInputError, match="prev_rewards must be numbers"):
+        agent.act([np.zeros(39)], ["lots"], [False])
     window = agent.model.config.context_len
     with pytest.raises(AgentInputError, match=f"a prompt of {window + 1} steps after 0 does not fit the model's "
                                               f"{window}-step window"):

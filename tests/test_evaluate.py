@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import time
 
 import numpy as np
 import pytest
@@ -70,6 +71,16 @@ def test_eval_settings_out_of_range_are_named_before_any_env_runs(tmp_path, opti
     assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output  # no traceback
     assert message in " ".join(result.output.split())
     assert not (tmp_path / "results").exists()
+
+
+def test_an_unwritable_out_is_named_before_the_run_not_after(tmp_path):
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    (tmp_path / "a-file").write_text("x")
+    started = time.perf_counter()
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "reach-v3",
+                                      "--shots", "50", "--out", str(tmp_path / "a-file" / "results")])
+    assert result.exit_code == 2 and "a-file is a file, not a directory" in " ".join(result.output.split())
+    assert time.perf_counter() - started < 10  # 50 shots of reach-v3 would take far longer
 
 
 def test_eval_config_checks_types_and_ranges_in_python_too():

@@ -16,7 +16,7 @@ from rich.progress import track
 from rich.table import Table
 from typer.core import TyperGroup
 
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, get_task, list_tasks, resolve_tasks
 
@@ -106,6 +106,8 @@ def check_envs(
 
     try:
         specs = _runnable_tasks(task_names or DEFAULT_CHECK_TASKS)
+        if out is not None:
+            check_output_path(out)  # before the rollouts, not after them
     except VintixError as error:
         raise _fail(error)
     results = [random_policy_returns(t.name, episodes, seed) for t in track(specs, description="random rollouts")]
@@ -222,6 +224,7 @@ def demonstrator_eval(
     try:
         specs = _runnable_tasks(task)
         demonstrators = [load_demonstrator(spec.name) for spec in specs]
+        check_output_path(out)
     except VintixError as error:
         raise _fail(error)
     command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"

@@ -128,6 +128,14 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
     return AgentTask(task, group, mean, std, reward_scale, source, low, high)
 
 
+def _numbers(what: str, values: object, dtype: type) -> np.ndarray:
+    """`values` as a numeric array; text or ragged lists are an AgentInputError naming `what`."""
+    try:
+        return np.asarray(values, dtype=dtype)
+    except (TypeError, ValueError) as error:
+        raise AgentInputError(f"{what} must be numbers: {error}") from error
+
+
 def _registry_dims(task: str) -> tuple[int, int] | None:
     try:
         spec = get_task(task)
@@ -282,14 +290,14 @@ class Agent:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
-        starts = np.asarray(episode_starts, dtype=bool).reshape(-1)
-        rewards = np.where(starts, 0.0, np.asarray(prev_rewards, dtype=np.float64).reshape(-1))
+        starts = _numbers("episode_starts", episode_starts, bool).reshape(-1)
+        rewards = np.where(starts, 0.0, _numbers("prev_rewards", prev_rewards, np.float64).reshape(-1))
         if len(obs) != batch or starts.shape != (batch,) or rewards.shape != (batch,):
             raise AgentInputError(
                 f"the agent was reset with {batch} envs; got {len(obs)} observations, {rewards.shape[0]} rewards, "
                 f"{starts.shape[0]} episode starts"
             )
-        observations = [np.asarray(o, dtype=np.float32) for o in obs]
+        observations = [_numbers(f"observation of env {i}", o, np.float32) for i, o in enumerate(obs)]
         for i, task in enumerate(self.tasks):
             self._check("observation", i, observations[i], (self.model.groups[task.group].obs_dim,))
             self._check("previous reward", i, rewards[i : i + 1], (1,))
@@ -330,9 +338,10 @@ class Agent:
             )
         for i, task in enumerate(self.tasks):
             spec = self.model.groups[task.group]
-            self._check("prompt observations", i, np.asarray(observations[i]), (steps, spec.obs_dim))
-            self._check("prompt actions", i, np.asarray(actions[i]), (steps, spec.act_dim))
-            self._check("prompt rewards", i, np.asarray(rewards[i]), (steps,))
+            self._check("prompt observations", i, _numbers("prompt observations", observations[i], np.float64),
+                        (steps, spec.obs_dim))
+            self._check("prompt actions", i, _numbers("prompt actions", actions[i], np.float64), (steps, spec.act_dim))
+            self._check("prompt rewards", i, _numbers("prompt rewards", rewards[i], np.float64), (steps,))
         # Row t of a history: o_t, a_t taken at o_t, r_t after it; token t carries a_{t-1}, r_{t-1}.
         shifted = {
             g: torch.as_tensor(

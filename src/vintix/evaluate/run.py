@@ -25,7 +25,7 @@ import torch
 from rich.progress import Progress
 
 from vintix.agent import Agent
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, check_output_path
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.scores import Reference, missing_reference_note, reference
@@ -278,6 +278,8 @@ def evaluate(
 ) -> tuple[list[dict[str, Any]], list[str]]:
     """Run `config` with `agent`; write the results under `out` if given. Returns the episode rows
     and notes (skipped tasks, missing references) for the user."""
+    if out is not None:
+        check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
     specs, notes = select_tasks(config.tasks, list(agent.model.groups))
     refs, missing = references([s.name for s in specs])
     started = time.time()

@@ -83,8 +83,12 @@ def build_model(meta: dict[str, Any]) -> Vintix:
     unknown = sorted(set(meta["config"]) - known)
     if unknown:
         raise CheckpointError(f"checkpoint config has fields {unknown} that this vintix's ModelConfig lacks")
-    config = ModelConfig(**meta["config"])
-    return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
+    try:
+        config = ModelConfig(**meta["config"])
+        return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
+    except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged model.json
+        raise CheckpointError(f"{CONFIG_FILE} does not describe a model this vintix can build ({error}); the "
+                              "checkpoint is damaged or not vintix's") from error
 
 
 def torch_device(name: str | torch.device) -> torch.device:
@@ -104,7 +108,11 @@ def load_pretrained(directory: str | os.PathLike[str], device: str | torch.devic
     """The model saved in `directory`, in eval mode, on `device`."""
     directory = Path(directory)
     device = torch_device(device)  # before reading gigabytes of weights
-    model = build_model(read_metadata(directory))
+    meta = read_metadata(directory)
+    try:
+        model = build_model(meta)
+    except CheckpointError as error:  # build_model cannot name the file it was read from
+        raise CheckpointError(f"{directory / CONFIG_FILE}: {error}") from error
     weights_path = directory / WEIGHTS_FILE
     if not weights_path.is_file():
         raise CheckpointError(f"{directory}: {CONFIG_FILE} is there but {WEIGHTS_FILE} is not; re-save it")
