@@ -87,8 +87,8 @@ def build_model(meta: dict[str, Any]) -> Vintix:
         config = ModelConfig(**meta["config"])
         return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
     except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged model.json
-        raise CheckpointError(f"{CONFIG_FILE} does not describe a model this vintix can build ({error}); the "
-                              "checkpoint is damaged or not vintix's") from error
+        raise CheckpointError(f"does not describe a model this vintix can build ({error}); the checkpoint is "
+                              "damaged or not vintix's") from error
 
 
 def torch_device(name: str | torch.device) -> torch.device:
