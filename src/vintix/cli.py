@@ -20,6 +20,7 @@ from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, get_task, list_tasks, resolve_tasks
 
+
 class _Commands(TyperGroup):
     """A safety net under every command's own error handling: a VintixError raised anywhere in a
     command (or a file-system error, whose message names its path) ends as ``error: ...`` and exit
