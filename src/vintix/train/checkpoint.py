@@ -80,7 +80,8 @@ def _state_problem(directory: Path) -> str | None:
         return f"{STATE_FILE} says step {state['step']}, its folder step {int(directory.name.split('-')[1])}"
     groups = state.get("optimizer_param_groups")
     if not (isinstance(groups, list) and groups and all(isinstance(g, dict) and isinstance(g.get("params"), list)
-                                                         and len(g.get("betas", ())) == 2 for g in groups)):
+                                                         and isinstance(g.get("betas"), list) and len(g["betas"]) == 2
+                                                         for g in groups)):
         return f"{STATE_FILE} lacks the optimizer's parameter groups"
     return None
 
@@ -205,7 +206,8 @@ def load_optimizer(optimizer: torch.optim.Optimizer, names: list[str], directory
     tensors = load_file(str(directory / OPTIMIZER_FILE))
     groups = json.loads((directory / STATE_FILE).read_text())["optimizer_param_groups"]
     index = {name: i for i, name in enumerate(names)}
-    missing = sorted({n for g in groups for n in g["params"]} ^ set(names))
+    in_groups, in_tensors = {n for g in groups for n in g["params"]}, {k.rsplit("/", 1)[0] for k in tensors}
+    missing = sorted((in_groups ^ set(names)) | (in_tensors - set(names)))
     if missing:
         raise CheckpointError(f"{directory}: optimizer state does not match the model's parameters ({missing[:5]})")
     state: dict[int, dict[str, torch.Tensor]] = {}
