@@ -20,7 +20,7 @@ _INVALID = object()
 
 
 def _coerce(value: Any, hint: Any) -> Any:
-    """`value` as the type `hint` names, or `_INVALID`. Types it does not know pass unchecked."""
+    """`value` as the type `hint` names, or `_INVALID`. Generic types it does not know pass unchecked."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
         for arg in args:
@@ -53,6 +53,8 @@ def _coerce(value: Any, hint: Any) -> Any:
             return _INVALID
         pairs = [(_coerce(k, args[0]), _coerce(v, args[1])) for k, v in value.items()]
         return _INVALID if any(_INVALID in pair for pair in pairs) else dict(pairs)
+    if isinstance(hint, type) and origin is None:  # a class of ours, e.g. CollectionPlan.schedule: NoiseSchedule
+        return value if isinstance(value, hint) else _INVALID
     return value
 
 
