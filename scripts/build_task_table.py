@@ -21,8 +21,9 @@ def canonical(domain: str, paper_name: str) -> tuple[str, list[str]]:
     """Our task name and the aliases users (and the paper's tables) may use for it."""
     if domain == "mujoco":
         env = paper_name.split("-")[0]
-        aliases = [f"{env}-v4"] if env != "Pusher" else []  # Pusher-v4 does not load on mujoco 3
-        return f"{env}-v5", aliases
+        # The published dataset names its tasks -v4 (Pusher too, although gymnasium's Pusher-v4 does
+        # not load on mujoco 3): every -v4 name reads as the -v5 task, whose dims the data has.
+        return f"{env}-v5", [f"{env}-v4"]
     if domain == "metaworld":
         return f"{paper_name}-v3", [paper_name, f"{paper_name}-v2"]
     if domain == "industrial_benchmark":

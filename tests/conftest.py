@@ -1,5 +1,6 @@
 """Shared helpers for tests that drive real environments."""
 
+import h5py
 import numpy as np
 import pytest
 
@@ -25,3 +26,14 @@ def rollout(env, steps: int, action_seed: int = 0, reset_seed: int | None = None
         if terminated or truncated:
             observations.append(env.reset()[0])
     return np.array(observations), np.array(rewards)
+
+
+def flip_a_byte_of_data(path, dataset: str = "0-6/proprio_observation") -> None:
+    """Damage one data block in place, leaving the file's structure (and so its openability) intact."""
+    with h5py.File(path) as f:
+        chunk = f[dataset].id.get_chunk_info(0)
+    with open(path, "r+b") as f:
+        f.seek(chunk.byte_offset + chunk.size // 2)
+        byte = f.read(1)
+        f.seek(-1, 1)
+        f.write(bytes([byte[0] ^ 0xFF]))

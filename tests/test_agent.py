@@ -10,7 +10,7 @@ from gymnasium.spaces import Box
 
 import vintix
 from inference_model import one_torch_thread, random_inputs, tiny_model  # noqa: F401  (autouse fixture)
-from vintix.agent import Agent, AgentInputError
+from vintix.agent import Agent, AgentInputError, AgentOutputError, AgentStateError
 from vintix.errors import UnknownTaskError
 from vintix.model import save_pretrained
 
@@ -90,6 +90,16 @@ def test_actions_are_clipped_to_each_envs_bounds():
     assert np.abs(pendulum).max() == pytest.approx(3.0) and np.all(np.abs(pendulum) <= 3.0)
 
 
+def test_a_model_that_computes_nan_raises_instead_of_returning_nan_actions():
+    model = tiny_model()
+    with torch.no_grad():
+        model.heads["mujoco-invertedpendulum"][-1].bias.fill_(float("nan"))  # a diverged head
+    agent = Agent(model)
+    agent.reset(["reach-v3", "InvertedPendulum-v5"])
+    with pytest.raises(AgentOutputError, match="env 1 \\(InvertedPendulum-v5\\): the model's action is NaN/inf"):
+        agent.act([np.zeros(39), np.zeros(4)], [0.0, 0.0], [True, True])
+
+
 def test_a_held_out_task_uses_its_groups_pooled_normalization():
     agent = Agent(tiny_model())
     agent.reset(["door-lock-v3", "reach-v3"])  # ML45 test task: no statistics in the checkpoint
@@ -123,3 +133,23 @@ def test_wrong_observation_dim_or_non_finite_input_is_a_clear_error():
         agent.act([np.zeros(39), np.zeros(4)], [0.0, np.inf], [False, False])
     # a reward at an episode start is ignored, whatever it is
     assert len(agent.act([np.zeros(39), np.zeros(4)], [np.nan, 0.0], [True, False])) == 2
+
+
+def test_misuse_of_the_agent_is_a_named_error():
+    agent = Agent(tiny_model())
+    for call in (lambda: agent.act([np.zeros(39)], [0.0], [True]), lambda: agent.keep([0]),
+                 lambda: agent.prompt([np.zeros((2, 39))], [np.zeros((2, 4))], [np.zeros(2)], [np.arange(2)])):
+        with pytest.raises(AgentStateError, match="call agent.reset"):
+            call()
+    with pytest.raises(AgentInputError, match="at least one task"):
+        agent.reset([])
+    with pytest.raises(AgentInputError, match="2 tasks but 1 action spaces"):
+        agent.reset(["reach-v3", "push-v3"], [UNBOUNDED[4]])
+    agent.reset(["reach-v3"], [UNBOUNDED[4]])
+    with pytest.raises(AgentInputError, match="prev_rewards must be numbers"):
+        agent.act([np.zeros(39)], ["lots"], [False])
+    window = agent.model.config.context_len
+    with pytest.raises(AgentInputError, match=f"a prompt of {window + 1} steps after 0 does not fit the model's "
+                                              f"{window}-step window"):
+        agent.prompt([np.zeros((window + 1, 39))], [np.zeros((window + 1, 4))], [np.zeros(window + 1)],
+                     [np.arange(window + 1)])

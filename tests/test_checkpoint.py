@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from test_model import make_batch, make_model
+from vintix.errors import DeviceError
 from vintix.model import CheckpointError, load_pretrained, read_metadata, save_pretrained
 
 
@@ -37,6 +38,15 @@ def test_truncated_weights_are_reported(tmp_path):
         load_pretrained(tmp_path)
 
 
+def test_nan_weights_of_a_diverged_run_are_refused(tmp_path):
+    model = make_model()
+    with torch.no_grad():
+        next(model.parameters()).view(-1)[0] = float("nan")
+    save_pretrained(model, tmp_path)
+    with pytest.raises(CheckpointError, match="1 of .* tensors hold NaN/inf .*use an earlier one"):
+        load_pretrained(tmp_path)
+
+
 def test_weights_of_another_config_are_refused(tmp_path):
     save_pretrained(make_model(), tmp_path / "small")
     save_pretrained(make_model(mlp_dim=32), tmp_path / "other")
@@ -52,3 +62,18 @@ def test_unknown_config_field_is_refused(tmp_path):
     (tmp_path / "model.json").write_text(json.dumps(meta))
     with pytest.raises(CheckpointError, match="rotary"):
         load_pretrained(tmp_path)
+
+
+def test_a_hand_edited_model_json_is_named_not_a_traceback(tmp_path):
+    save_pretrained(make_model(), tmp_path)
+    meta = json.loads((tmp_path / "model.json").read_text())
+    for broken in ({**meta, "groups": [{"x": 1}]}, {**meta, "config": {**meta["config"], "n_heads": "2"}}):
+        (tmp_path / "model.json").write_text(json.dumps(broken))
+        with pytest.raises(CheckpointError, match="model.json: .*(does not describe a model|n_heads must be int)"):
+            load_pretrained(tmp_path)
+
+
+def test_a_device_this_machine_lacks_is_named_before_loading(tmp_path):
+    save_pretrained(make_model(), tmp_path)
+    with pytest.raises(DeviceError, match="device 'tpu'"):
+        load_pretrained(tmp_path, "tpu")

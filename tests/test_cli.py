@@ -1,6 +1,9 @@
 """The `vintix` command line."""
 
 import csv
+import os
+import subprocess
+import sys
 
 from typer.testing import CliRunner
 
@@ -95,3 +98,56 @@ def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_
     result = runner.invoke(app, ["collect", "--task", "Humanoid-v5", "--out", str(tmp_path / "data")])
     assert result.exit_code == 2 and "no trained demonstrator for 'Humanoid-v5'" in result.output
     assert not (tmp_path / "data").exists()
+
+
+def test_python_dash_m_vintix_runs_the_cli():
+    # Same package as this test run (the source tree may be first on PYTHONPATH, not installed).
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "mujoco"],
+                            capture_output=True, text=True, env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "11 tasks" in result.stdout and "Pusher-v5" in result.stdout
+    usage = subprocess.run([sys.executable, "-m", "vintix", "--help"], capture_output=True, text=True, env=env,
+                           timeout=120)
+    assert usage.returncode == 0 and "Usage: vintix" in usage.stdout
+
+
+def test_collect_into_a_folder_made_with_other_settings_says_so(tmp_path):
+    command = ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "100", "--out", str(tmp_path)]
+    assert runner.invoke(app, command).exit_code == 0
+    result = runner.invoke(app, [*command, "--seed", "3"])
+    assert result.exit_code == 2 and "holds histories made with other settings" in " ".join(result.output.split())
+    assert "collected 0 steps" not in result.output
+
+
+def test_collect_with_zero_envs_per_batch_is_a_named_error(tmp_path):
+    result = runner.invoke(app, ["collect", "--task", "reach-v3", "--envs-per-batch", "0", "--out", str(tmp_path)])
+    assert result.exit_code == 2 and "envs_per_batch=0" in result.output
+    assert not any(tmp_path.iterdir())
+
+
+def test_an_output_path_under_a_file_is_named_not_a_traceback(tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    result = runner.invoke(app, ["check-envs", "InvertedPendulum-v5", "--episodes", "1", "--out", str(blocker / "x.csv")])
+    assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output
+    assert f"{blocker} is a file, not a directory" in " ".join(result.output.split())
+    result = runner.invoke(app, ["collect", "--task", "reach-v3", "--steps", "10", "--out", str(blocker)])
+    assert result.exit_code == 2 and "is a file, not a directory" in " ".join(result.output.split())
+
+
+def test_commands_given_only_tasks_without_a_simulator_say_so():
+    for command in (["check-envs", "Hand-Pen"], ["demonstrator", "eval", "--task", "Hand-Pen"]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 2 and "need NVIDIA IsaacGym" in " ".join(result.output.split()), result.output
+
+
+def test_counts_and_presets_out_of_range_fail_before_any_work():
+    for command, message in ((["check-envs", "InvertedPendulum-v5", "--episodes", "0"], "Invalid value for '--episodes'"),
+                             (["check-envs", "InvertedPendulum-v5", "--seed", "-1"], "Invalid value for '--seed'"),
+                             (["bench", "train", "huge"], "unknown model preset 'huge'"),
+                             (["bench", "infer", "tiny", "--envs", "0"], "Invalid value for '--envs'"),
+                             (["demonstrator", "train", "--task", "InvertedPendulum-v5", "--timesteps", "0"],
+                              "Invalid value for '--timesteps'")):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 2 and message in result.output, (command, result.output)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
-from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.data import LearningHistory, read_task_metadata, validate_dataset
 from vintix.demonstrators import ScriptedMetaWorldDemonstrator
 
@@ -68,3 +68,27 @@ def test_interrupted_collection_resumes_to_identical_files(tmp_path):
     collect(PLAN, tmp_path / "resumed")
     for name in ["history-0000.h5", "history-0001.h5", "history-0002.h5", "reach-v3.json"]:
         assert filecmp.cmp(tmp_path / "straight/metaworld/reach-v3" / name, task_dir / name, shallow=False), name
+
+
+def test_a_folder_finished_with_other_settings_is_refused_not_reported_as_done(tmp_path):
+    first = CollectionPlan("reach-v3", histories=2, steps=100, envs_per_batch=2)
+    collect(first, tmp_path)
+    task_dir = tmp_path / "metaworld" / "reach-v3"
+    before = {p.name: p.read_bytes() for p in task_dir.iterdir()}
+    for other, difference in [(dict(steps=50), "steps 100 (now 50)"), (dict(seed=1), "collection_seed 0 (now 1)"),
+                              (dict(schedule=NoiseSchedule(curvature=2.0)), "curvature 1.0 (now 2.0)")]:
+        with pytest.raises(CollectionSettingsError, match="holds histories made with other settings") as error:
+            collect(CollectionPlan("reach-v3", **{**dict(histories=2, steps=100, envs_per_batch=2), **other}), tmp_path)
+        assert difference in str(error.value) and "history-0000.h5" in str(error.value)
+    assert {p.name: p.read_bytes() for p in task_dir.iterdir()} == before  # JSON included: nothing rewritten
+    again = collect(CollectionPlan("reach-v3", histories=3, steps=100, envs_per_batch=2), tmp_path)
+    assert [s.collected_now for s in again] == [False, False, True]  # same settings: only the new one
+
+
+@pytest.mark.parametrize(("settings", "message"), [
+    (dict(envs_per_batch=0), "envs_per_batch=0"), (dict(histories=0), "histories=0"), (dict(steps=-5), "steps=-5"),
+    (dict(seed=-1), "seed=-1"), (dict(steps="100"), "CollectionPlan.steps must be int, got '100'"),
+])
+def test_plan_settings_out_of_range_are_named(settings, message):
+    with pytest.raises(CollectionError, match=message):
+        CollectionPlan("reach-v3", **{"histories": 1, "steps": 100, **settings})

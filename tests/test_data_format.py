@@ -10,6 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
+from conftest import flip_a_byte_of_data
 from vintix.data import (
     DatasetError,
     LearningHistory,
@@ -210,6 +211,21 @@ def test_truncated_file_raises_dataset_error(tmp_path):
         LearningHistory(path).read(0, 10)
     assert str(path) in str(error.value) and "re-collect or delete it" in str(error.value)
     assert pickle.loads(pickle.dumps(error.value)).path == path  # survives DataLoader workers
+
+
+def test_histories_carry_checksums_and_a_corrupted_block_names_its_file(tmp_path):
+    path = tmp_path / "h.h5"
+    rows = make_rows(30)
+    write(path, rows, chunk_size=7)
+    with h5py.File(path) as f:
+        assert all(f[f"{g}/{k}"].fletcher32 for g in f for k in f[g])
+    flip_a_byte_of_data(path)
+    history = LearningHistory(path)
+    assert history.num_steps == 30  # still opens and indexes: only the damaged block's rows fail
+    assert_rows_equal(history.read(7, 30), rows, 7, 30)
+    with pytest.raises(DatasetError, match="failed its checksum") as error:
+        history.read(0, 10)
+    assert error.value.path == path and "re-collect or delete it" in str(error.value)
 
 
 def _read_in_child(history: LearningHistory, conn) -> None:

@@ -8,6 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
+from conftest import flip_a_byte_of_data
 from vintix.data import (
     LearningHistoryWriter,
     summarize_dataset,
@@ -127,6 +128,13 @@ def test_truncated_file(dataset):
     assert problem.path == path
     assert "not a readable HDF5 file (truncated or corrupted?)" in problem.message
     assert str(path) in str(problem)
+
+
+def test_a_corrupted_data_block_is_reported_with_its_file(dataset):
+    path = hopper_file(dataset)
+    flip_a_byte_of_data(path, "7-13/reward")
+    problem = only_problem(dataset)
+    assert problem.path == path and "failed its checksum" in problem.message
 
 
 def test_folder_level_problems(dataset):

@@ -149,3 +149,30 @@ def test_collection_with_a_trained_demonstrator_rises(tmp_path):
     assert len(returns) == 20
     assert spearmanr(np.arange(len(returns)), returns).statistic >= 0.8
     assert normalized(plan.task, summary.mean_return(first=False)) >= 0.8
+
+
+def test_demonstrator_eval_writes_to_the_users_folder_and_leaves_the_package_table_alone(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from vintix.cli import app
+    from vintix.demonstrators import scores
+
+    package_table = tmp_path / "package" / "scores.csv"  # a stand-in, so this test never touches the real one
+    package_table.parent.mkdir()
+    package_table.write_bytes(scores.scores_path().read_bytes())
+    monkeypatch.setattr(scores, "scores_path", lambda: package_table)
+    monkeypatch.chdir(tmp_path)
+    before = package_table.read_bytes()
+    (tmp_path / "before.csv").write_bytes(before)
+    command = ["demonstrator", "eval", "--task", "reach-v3", "--episodes", "1"]
+    result = CliRunner().invoke(app, command)
+    assert result.exit_code == 0, result.output
+    assert package_table.read_bytes() == before
+    assert [(s.task, s.policy, s.episodes) for s in read_scores(tmp_path / "demonstrator-scores.csv")] == [
+        ("reach-v3", "demonstrator", 1), ("reach-v3", "random", 1)]
+    assert "demonstrator-scores.csv" in result.output
+    asked = CliRunner().invoke(app, [*command, "--out", str(tmp_path / "mine.csv"), "--update-package-table"])
+    assert asked.exit_code == 0, asked.output
+    rows = {(s.task, s.policy): s.episodes for s in read_scores(package_table)}
+    assert rows[("reach-v3", "demonstrator")] == rows[("reach-v3", "random")] == 1  # asked for: replaced
+    assert len(rows) == len(read_scores(tmp_path / "before.csv")) and str(package_table) in " ".join(asked.output.split())

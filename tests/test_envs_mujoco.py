@@ -5,6 +5,7 @@ import pytest
 from conftest import rollout
 
 from vintix import list_tasks, make_env
+from vintix.errors import UnsupportedOptionError
 
 
 @pytest.mark.parametrize("task", [t.name for t in list_tasks(domain="mujoco")])
@@ -54,3 +55,11 @@ def test_viscosity_and_gravity_persist_across_resets_and_change_the_dynamics():
 def test_negative_viscosity_is_rejected():
     with pytest.raises(ValueError, match="viscosity must be >= 0"):
         make_env("Hopper-v5", viscosity=-0.1)
+
+
+def test_non_finite_variations_are_rejected_not_simulated():
+    # MuJoCo itself takes NaN and then every observation of the episode is NaN.
+    with pytest.raises(UnsupportedOptionError, match="gravity_scale must be finite"):
+        make_env("Hopper-v5", gravity_scale=float("nan"))
+    with pytest.raises(UnsupportedOptionError, match="viscosity must be >= 0 and finite"):
+        make_env("Hopper-v5", viscosity=float("inf"))

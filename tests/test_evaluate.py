@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import time
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, 
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate import (
     EvalConfig,
+    EvalConfigError,
     Reference,
     ReferenceScoreError,
     evaluate,
@@ -56,6 +58,41 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
     assert len({r["return"] for r in reach if r["shot"] == "1"}) == 2
     run = json.loads((tmp_path / "results" / "run.json").read_text())
     assert run["label"] == "ckpt" and "one hidden goal" in run["goal_protocol"]
+
+
+@pytest.mark.parametrize(("option", "message"), [
+    (["--shots", "0"], "shots=0"), (["--seeds", "0"], "seeds=0"), (["--seeds", "-1"], "seeds=-1"),
+    (["--batch-envs", "0"], "batch_envs=0"), (["--first-seed", "-1"], "first_seed=-1"),
+    (["--prompt-steps", "-5"], "prompt_steps=-5"), (["--threads", "0"], "Invalid value for '--threads'"),
+    (["--reference", "bogus"], "unknown reference table 'bogus'"), (["--device", "tpu"], "device 'tpu'"),
+    (["--variation", "viscosity=nan"], "variation"),
+])
+def test_eval_settings_out_of_range_are_named_before_any_env_runs(tmp_path, option, message):
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "reach-v3",
+                                      "--out", str(tmp_path / "results"), *option])
+    assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output  # no traceback
+    assert message in " ".join(result.output.split())
+    assert not (tmp_path / "results").exists()
+
+
+def test_an_unwritable_out_is_named_before_the_run_not_after(tmp_path):
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    (tmp_path / "a-file").write_text("x")
+    started = time.perf_counter()
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "reach-v3",
+                                      "--shots", "50", "--out", str(tmp_path / "a-file" / "results")])
+    assert result.exit_code == 2 and "a-file is a file, not a directory" in " ".join(result.output.split())
+    assert time.perf_counter() - started < 10  # 50 shots of reach-v3 would take far longer
+
+
+def test_eval_config_checks_types_and_ranges_in_python_too():
+    with pytest.raises(EvalConfigError, match="shots=0"):
+        EvalConfig(shots=0)
+    with pytest.raises(EvalConfigError, match="EvalConfig.seeds must be int, got '3'"):
+        EvalConfig(seeds="3")
+    with pytest.raises(EvalConfigError, match="no tasks to evaluate"):
+        EvalConfig(tasks=[",", ""])
 
 
 def test_normalization_formula_and_expert_not_above_random_raises():

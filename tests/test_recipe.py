@@ -2,6 +2,7 @@
 
 import pytest
 
+from vintix.collect import CollectionError
 from vintix.collect.recipe import load_recipe
 from vintix.tasks import get_task
 
@@ -36,3 +37,19 @@ def test_unknown_setting_and_unknown_recipe_are_clear_errors(tmp_path):
         load_recipe(path)
     with pytest.raises(FileNotFoundError, match="shipped: .*tiny"):
         load_recipe("no-such-recipe")
+
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("tasks:\n  reach-v3: {steps: 100}\n", "no histories"),
+    ("defaults: {histories: 1}\ntasks:\n  reach-v3: {steps: many}\n", "CollectionPlan.steps must be int, got 'many'"),
+    ("tasks:\n  reach-v3: {histories: 1, steps: 10, curvature: steep}\n", "NoiseSchedule.curvature must be float"),
+    ("tasks:\n  reach-v3: 5\n", "must be mappings"),
+    ("tasks: [reach-v3, : x\n", "not a YAML recipe"),
+])
+def test_a_recipe_with_missing_or_mistyped_settings_names_them(tmp_path, text, message):
+    path = tmp_path / "r.yaml"
+    path.write_text(text)
+    with pytest.raises(CollectionError, match=message) as error:
+        load_recipe(path)
+    assert str(path) in str(error.value)

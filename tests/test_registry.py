@@ -3,7 +3,7 @@
 import pytest
 
 from vintix.errors import UnknownTaskError
-from vintix.tasks import get_task, list_tasks, resolve_tasks
+from vintix.tasks import get_task, list_tasks, make_env, resolve_tasks
 
 
 def test_registry_has_every_task_of_the_paper():
@@ -59,9 +59,13 @@ def test_unknown_task_lists_close_matches():
         get_task("pick-plcae-v3")
 
 
-def test_pusher_v4_explains_why_it_is_unavailable():
-    with pytest.raises(UnknownTaskError, match="mujoco<3.*Pusher-v5"):
-        get_task("Pusher-v4")
+def test_pusher_v4_of_the_published_dataset_is_the_v5_task():
+    # The published dataset names its folder Pusher-v4: training on it and filters must find it.
+    assert get_task("Pusher-v4").name == "Pusher-v5"
+    assert [t.name for t in resolve_tasks(["Pusher-v4"])] == ["Pusher-v5"]
+    env = make_env("Pusher-v4", seed=0)
+    assert env.observation_space.shape == (23,) and env.spec.id == "Pusher-v5"
+    env.close()
 
 
 def test_unknown_filter_value_is_an_error_not_an_empty_list():

@@ -4,6 +4,8 @@ the episodes, and clear errors."""
 from __future__ import annotations
 
 import csv
+import re
+import shutil
 
 import numpy as np
 import pytest
@@ -68,3 +70,30 @@ def test_a_folder_without_results_or_without_references_is_a_clear_error(two_res
         [episodes[0]] + [line.replace("reach-v3", "Hand-Block-Stack", 1) for line in episodes[1:] if "reach-v3" in line]))
     result = CliRunner().invoke(app, ["report", str(tmp_path / "bidex"), "--out", str(tmp_path / "r"), "--reference", "ours"])
     assert result.exit_code == 2 and "no task" in result.output and "'ours' reference" in result.output
+
+
+
+@pytest.mark.parametrize(("damage", "message"), [
+    (lambda f: (f / "episodes.csv").write_text("a,b\n1,2\n"), "not a `vintix eval` episodes table"),
+    (lambda f: (f / "run.json").write_text("{"), "run.json: not valid JSON"),
+    (lambda f: (f / "episodes.csv").write_text((f / "episodes.csv").read_text().splitlines()[0] + "\n"),
+     "holds no episodes"),
+    (lambda f: (f / "episodes.csv").write_text((f / "episodes.csv").read_text().replace("metaworld,train,metaworld,0",
+                                                                                        "metaworld,train,metaworld,x", 1)),
+     r"episodes.csv, line 2: invalid literal for int\(\) with base 10: 'x'"),
+])
+def test_damaged_results_are_named_errors_not_tracebacks(two_results, tmp_path, damage, message):
+    folder = tmp_path / "results"
+    shutil.copytree(two_results / "ad", folder)
+    damage(folder)
+    result = CliRunner().invoke(app, ["report", str(folder), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output
+    assert re.search(message, " ".join(result.output.split())), result.output
+
+
+def test_report_options_out_of_range_are_refused(two_results, tmp_path):
+    for option, message in ((["--plateau-shots", "0"], "Invalid value for '--plateau-shots'"),
+                            (["--reference", "bogus"], "unknown reference table 'bogus'")):
+        result = CliRunner().invoke(app, ["report", str(two_results / "ad"), "--out", str(tmp_path / "r"), *option])
+        assert result.exit_code == 2 and message in result.output, result.output
+    assert not (tmp_path / "r").exists()

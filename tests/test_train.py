@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import re
 import shutil
 
+import h5py
 import pytest
 import torch
 from safetensors.torch import load_file
@@ -17,6 +19,7 @@ from vintix.model import CheckpointError, load_pretrained
 from vintix.model.checkpoint import read_metadata
 from vintix.train import (
     ConfigError,
+    NonFiniteLossError,
     TrainConfig,
     Trainer,
     WindowDataset,
@@ -25,7 +28,14 @@ from vintix.train import (
     collate_windows,
     learning_rate,
 )
-from vintix.train.checkpoint import best_checkpoint_dir, latest_checkpoint, model_directory, read_training_state
+from vintix.train.checkpoint import (
+    best_checkpoint_dir,
+    latest_checkpoint,
+    list_checkpoints,
+    model_directory,
+    prune_checkpoints,
+    read_training_state,
+)
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -191,6 +201,32 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
     assert read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"] == 0.9
 
 
+@pytest.mark.parametrize(("setting", "message"), [
+    ("max_steps=abc", "TrainConfig.max_steps must be int, got 'abc'"),
+    ("lr=-1", "out of range: lr=-1.0"),
+    ("lr=.nan", "TrainConfig.lr must be float, got nan"),
+    ("tasks=reach-v3", r"TrainConfig.tasks must be list\[str\], got 'reach-v3'"),
+    ("num_workers=-1", "must be >= 0: num_workers=-1"),
+    ("window_len=0", "must be >= 1: window_len=0"),
+    ("model_overrides={n_heads: 0}", "model_overrides: sizes must be >= 1 .*n_heads=0"),
+    ("model_overrides={mlp_dim: big}", "ModelConfig.mlp_dim must be int, got 'big'"),
+])
+def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_path, setting, message):
+    result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),
+                                      "--set", setting])
+    assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output  # no traceback
+    output = " ".join(result.output.split())
+    assert re.search(message, output) and "--set values are read as YAML" in output, output
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a GPU")
+def test_training_on_cuda_without_a_gpu_is_a_named_error(tmp_path):
+    result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),
+                                      "--set", "device=cuda"])
+    assert result.exit_code == 2 and "torch sees no GPU" in result.output, result.output
+
+
 def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):
     with pytest.raises(ConfigError, match="multiple of log_every"):
         make_config(metaworld_data, tmp_path / "run", select_every=3, log_every=2)
@@ -211,3 +247,111 @@ def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path)
     score = logged(out, "in_context_score")[0]
     assert score == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"], abs=1e-6)
     assert -2.0 < score < 2.0
+
+
+def diverge(model, step):
+    """What a numerical blow-up leaves behind: one NaN weight (a callback runs right after a step)."""
+    with torch.no_grad():
+        model.ln_f.weight[0] = float("nan")
+
+
+def test_a_non_finite_loss_stops_training_with_the_last_good_checkpoint_intact(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    # Checkpoints at steps 2 and 4; the weights turn NaN after step 3, so step 4's loss is NaN.
+    config = make_config(metaworld_data, out, max_steps=6, checkpoint_every=2)
+    with pytest.raises(NonFiniteLossError, match=r"step 4: the loss or its gradient is not finite.*last good "
+                                                 r"checkpoint is .*step-00000002.*lower lr"):
+        Trainer(config, callbacks=[(3, diverge)]).run()
+    assert [p.name for p in list_checkpoints(out)] == ["step-00000002"]
+    load_pretrained(latest_checkpoint(out))  # finite: it loads
+    assert len(logged(out)) == 3
+
+
+def test_parameters_that_turned_nan_are_never_checkpointed(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    config = make_config(metaworld_data, out, max_steps=4, checkpoint_every=2)
+    with pytest.raises(NonFiniteLossError, match="step 2: the model's parameters hold NaN/inf, so no checkpoint"):
+        Trainer(config, callbacks=[(2, diverge)]).run()
+    assert list_checkpoints(out) == []
+
+
+def test_vintix_train_on_data_with_nan_rewards_refuses_to_start(metaworld_data, tmp_path):
+    data = tmp_path / "data"
+    shutil.copytree(metaworld_data, data)
+    path = data / "metaworld" / "push-v3" / "history-0001.h5"
+    with h5py.File(path, "r+") as f:
+        f["0-599/reward"][17] = float("nan")
+    result = CliRunner().invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "run"),
+                                      "--set", f"model_overrides={TEST_MODEL}", "--set", "max_steps=2",
+                                      "--set", f"stats_cache_dir={tmp_path / 'c'}"])
+    assert result.exit_code == 2, result.output
+    output = " ".join(result.output.split())
+    assert "history-0001.h5: NaN/inf in reward at row 17" in output and "vintix data validate" in output
+    assert not (tmp_path / "run" / "checkpoints").exists()
+
+
+def truncate(path):
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+DAMAGE = {
+    "truncated optimizer": lambda c: truncate(c / "optimizer.safetensors"),
+    "truncated rng": lambda c: truncate(c / "rng.safetensors"),
+    "truncated weights": lambda c: truncate(c / "model.safetensors"),
+    "garbage trainer.json": lambda c: (c / "trainer.json").write_text("{\"step\": 4, garbage"),
+    "trainer.json of another shape": lambda c: (c / "trainer.json").write_text("{\"step\": \"4\"}"),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGE))
+def test_resume_passes_over_a_damaged_newest_checkpoint_and_still_equals_the_straight_run(
+        metaworld_data, tmp_path, capsys, damage):
+    straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+
+    def config(out):
+        return make_config(metaworld_data, out, max_steps=6, checkpoint_every=2)
+
+    Trainer(config(straight)).run()
+    Trainer(config(resumed)).run(until_step=4)
+    DAMAGE[damage](resumed / "checkpoints" / "step-00000004")
+    capsys.readouterr()
+    trainer = Trainer(config(resumed))
+    note = " ".join(capsys.readouterr().out.split())
+    assert "step-00000004 is damaged" in note and "resuming from" in note and trainer.step == 2
+    trainer.run()
+    for name in ("model.safetensors", "optimizer.safetensors"):
+        a = load_file(str(latest_checkpoint(straight) / name))
+        b = load_file(str(latest_checkpoint(resumed) / name))
+        assert all(torch.equal(a[k], b[k]) for k in a), name
+    assert [p.name for p in list_checkpoints(resumed)] == ["step-00000002", "step-00000004", "step-00000006"]
+
+
+def test_a_run_without_one_intact_checkpoint_names_the_folder_to_delete(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    config = make_config(metaworld_data, out, max_steps=2, checkpoint_every=2)
+    Trainer(config).run()
+    truncate(out / "checkpoints" / "step-00000002" / "optimizer.safetensors")
+    with pytest.raises(CheckpointError, match=r"no intact checkpoint to resume from .*step-00000002: .*"
+                                              r"optimizer.safetensors: unreadable.*Delete .*checkpoints to train"):
+        Trainer(config)
+
+
+def test_evaluating_a_run_whose_newest_checkpoint_is_damaged_names_the_intact_one(metaworld_data, tmp_path):
+    from vintix.agent import Agent
+
+    out = tmp_path / "run"
+    Trainer(make_config(metaworld_data, out, max_steps=4, checkpoint_every=2)).run()
+    truncate(out / "checkpoints" / "step-00000004" / "model.safetensors")
+    with pytest.raises(CheckpointError, match=r"step-00000004/model.safetensors: unreadable.*newest intact checkpoint "
+                                              r"is .*step-00000002: pass it with --checkpoint, or delete"):
+        Agent.from_pretrained(out)
+    assert Agent.from_pretrained(out / "checkpoints" / "step-00000002").model.task_norms
+
+
+def test_pruning_drops_checkpoints_past_the_current_step(tmp_path):
+    for step in (1, 2, 3, 9):  # 9: a damaged checkpoint that resume passed over at step 3
+        directory = tmp_path / "checkpoints" / f"step-{step:08d}"
+        directory.mkdir(parents=True)
+        (directory / "trainer.json").write_text("{}")
+    prune_checkpoints(tmp_path, keep=2, step=3)
+    assert [p.name for p in list_checkpoints(tmp_path)] == ["step-00000002", "step-00000003"]

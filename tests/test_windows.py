@@ -5,17 +5,19 @@ from __future__ import annotations
 import json
 from collections import Counter
 
+import h5py
 import numpy as np
 import pytest
 import torch
 
-from vintix.data import LearningHistoryWriter, task_directory, write_task_metadata
+from vintix.data import LearningHistoryWriter, history_paths, task_directory, write_task_metadata
 from vintix.train.data import (
     TrainingDataError,
     WindowBatches,
     WindowDataset,
     collate_windows,
     load_training_data,
+    task_fingerprint,
 )
 
 
@@ -188,29 +190,56 @@ def test_task_missing_from_the_registry_is_a_clear_error(tmp_path):
         load(tmp_path / "data", tmp_path)
 
 
-def test_group_whose_tasks_disagree_on_dims_is_a_clear_error(tmp_path):
+def test_a_task_whose_data_disagrees_with_the_registrys_dims_is_a_clear_error(tmp_path):
     write_task(tmp_path / "data", "reach-v3", [[10] * 3])
     write_task(tmp_path / "data", "push-v3", [[10] * 3], obs_dim=12)
-    with pytest.raises(TrainingDataError, match="group 'metaworld' mixes observation/action sizes"):
+    with pytest.raises(TrainingDataError, match=r"'push-v3' declares \(obs_dim, act_dim\) = \(12, 4\) but the task "
+                                                r"registry's push-v3 \(group 'metaworld'\) has \(39, 4\)"):
         load(tmp_path / "data", tmp_path)
 
 
-def test_window_longer_than_every_history_is_a_clear_error(dataset, tmp_path):
-    data = load(dataset, tmp_path)
-    with pytest.raises(TrainingDataError, match="no history holds a window of 400 steps"):
-        WindowDataset(data, window_len=400)
-    with pytest.raises(TrainingDataError, match="sparsity 3"):
-        WindowDataset(data, window_len=100, sparsity=3)
-
-
-def test_training_takes_the_train_split_and_held_out_tasks_get_statistics_only(tmp_path):
+def test_an_industrial_benchmark_folder_claiming_7_dims_in_json_and_data_is_refused(tmp_path):
+    # JSON and histories agree with each other (validation's own checks pass), not with the registry.
     root = tmp_path / "data"
-    write_task(root, "reach-v3", [[20] * 10])
-    write_task(root, "door-lock-v3", [[20] * 10], offset=5.0)  # an ML45 test task
-    data = load_training_data(root, stats_cache_dir=tmp_path / "cache")
-    assert [t.name for t in data.tasks] == ["reach-v3"]  # no window of a held-out task, ever
-    assert [n.task for n in data.task_norms] == ["reach-v3", "door-lock-v3"]
-    # Its own statistics: the constant offset of its observations is normalized away as in training.
-    assert data.held_out[0].obs_mean[5] == pytest.approx(data.tasks[0].norm.obs_mean[5] + 5.0, abs=1e-4)
-    every = load_training_data(root, tasks=[], stats_cache_dir=tmp_path / "cache")
-    assert [t.name for t in every.tasks] == ["door-lock-v3", "reach-v3"] and not every.held_out
+    folder = task_directory(root, "industrial_benchmark", "industrial-benchmark-10-v1")
+    write_task_metadata(folder, "industrial-benchmark-10-v1", 7, 3)
+    write_history(folder / "history-0000.h5", [25] * 4, history_id=0, obs_dim=7, act_dim=3)
+    with pytest.raises(TrainingDataError, match=r"\(7, 3\) but the task registry's industrial-benchmark-10-v1 "
+                                                r"\(group 'industrial_benchmark'\) has \(6, 3\)") as error:
+        load(root, tmp_path, tasks=["industrial_benchmark"])
+    assert str(folder) in str(error.value)
+
+
+def poison(path, key: str, row: int, value: float = np.nan) -> None:
+    """Overwrite one value of a history in place with h5py (what a buggy writer or a diverged env leaves)."""
+    with h5py.File(path, "r+") as f:
+        group = next(name for name in f if int(name.split("-")[0]) <= row <= int(name.split("-")[1]))
+        data = f[group][key][()]
+        data[row - int(group.split("-")[0])] = value
+        f[group][key][...] = data
+
+
+@pytest.mark.parametrize("key", ["proprio_observation", "reward", "action"])
+def test_training_refuses_histories_with_nan_or_inf_before_it_starts(dataset, tmp_path, key):
+    path = dataset / "metaworld" / "reach-v3" / "history-0001.h5"
+    poison(path, key, 70, np.inf if key == "reward" else np.nan)
+    with pytest.raises(TrainingDataError, match=rf"history-0001.h5: NaN/inf in {key} at row 70.*vintix data "
+                                                "validate") as error:
+        load(dataset, tmp_path)
+    assert "reach-v3" in str(error.value)
+    assert not list((tmp_path / "cache").glob("reach-v3-*.json")), "no statistics cached for rejected data"
+
+
+def test_a_cached_entry_from_before_validation_or_with_nan_statistics_is_not_trusted(dataset, tmp_path):
+    load(dataset, tmp_path)
+    [cache] = (tmp_path / "cache").glob("reach-v3-*.json")
+    entry = json.loads(cache.read_text())
+    folder = dataset / "metaworld" / "reach-v3"
+    poison(folder / "history-0000.h5", "reward", 3)
+    # What an older vintix cached for this very data: no validation mark, or statistics already NaN.
+    entry["fingerprint"] = task_fingerprint(history_paths(folder))
+    unvalidated = {k: v for k, v in entry.items() if k != "validated"}
+    for stale in (unvalidated, {**entry, "obs_mean": [float("nan")] * 39}):
+        cache.write_text(json.dumps(stale))
+        with pytest.raises(TrainingDataError, match="history-0000.h5: NaN/inf in reward at row 3"):
+            load(dataset, tmp_path)

@@ -7,6 +7,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from vintix.errors import OutputPathError
+
 PARTIAL_SUFFIX = ".partial"
 
 
@@ -15,6 +17,29 @@ def partial_path(path: str | os.PathLike[str]) -> Path:
     rename is atomic on POSIX filesystems)."""
     path = Path(path)
     return path.with_name(path.name + PARTIAL_SUFFIX)
+
+
+def check_output_path(path: str | os.PathLike[str]) -> None:
+    """Raise OutputPathError now if a file stands where one of `path`'s folders must be, so a long
+    command fails before its work rather than when it saves the result. Creates nothing."""
+    path = Path(path)
+    blocking = next((p for p in path.parents if p.exists()), None)
+    if blocking is not None and not blocking.is_dir():
+        raise OutputPathError(f"cannot write {path}: {blocking} is a file, not a directory; choose another output "
+                              "path or move the file")
+    if path.is_dir():
+        raise OutputPathError(f"cannot write {path}: it is a directory; name a file")
+
+
+def make_parent_dirs(path: str | os.PathLike[str]) -> None:
+    """Create the folder `path` goes in; a file standing where a folder must be is an OutputPathError
+    naming that file (mkdir's own error names only the folder it wanted)."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError) as error:
+        check_output_path(path)
+        raise OutputPathError(f"cannot create the folder of {path}: {error}") from error
 
 
 def publish(temporary: Path, final: str | os.PathLike[str]) -> None:
@@ -33,7 +58,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary path beside `path`; publish it as `path` when the block succeeds, delete it
     when the block raises."""
     final = Path(path)
-    final.parent.mkdir(parents=True, exist_ok=True)
+    make_parent_dirs(final)
     temporary = partial_path(final)
     try:
         yield temporary

@@ -11,14 +11,30 @@ from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import track
 from rich.table import Table
+from typer.core import TyperGroup
 
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
-from vintix.tasks import get_task, list_tasks, resolve_tasks
+from vintix.tasks import TaskSpec, get_task, list_tasks, resolve_tasks
 
-app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True)
+
+class _Commands(TyperGroup):
+    """A safety net under every command's own error handling: a VintixError raised anywhere in a
+    command (or a file-system error, whose message names its path) ends as ``error: ...`` and exit
+    code 2, never as a traceback."""
+
+    def invoke(self, ctx: typer.Context) -> object:
+        try:
+            return super().invoke(ctx)
+        except (VintixError, OSError) as error:
+            raise _fail(error) from None
+
+
+app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True,
+                  cls=_Commands)
 data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one).", no_args_is_help=True)
 app.add_typer(data_app, name="data")
 demonstrator_app = typer.Typer(help="Train and score the experts that learning histories are distilled from.",
@@ -31,8 +47,21 @@ console = Console(width=None if sys.stdout.isatty() else 160)
 
 
 def _fail(error: Exception) -> typer.Exit:
-    console.print(f"[red]error:[/red] {error}")
+    # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup.
+    console.print(f"[red]error:[/red] {escape(str(error))}")
     return typer.Exit(code=2)
+
+
+def _runnable_tasks(selectors: list[str]) -> list[TaskSpec]:
+    """The selected tasks that have a simulator here (Bi-DexHands tasks need IsaacGym); none is an error,
+    not an empty table."""
+    specs = resolve_tasks(selectors)
+    runnable = [t for t in specs if t.domain != "bidexhands"]
+    if not runnable:
+        raise VintixError(f"none of {', '.join(t.name for t in specs)} can run here: Bi-DexHands tasks need NVIDIA "
+                          "IsaacGym, which no package registry serves; choose MuJoCo, Meta-World or Industrial "
+                          "Benchmark tasks")
+    return runnable
 
 
 def _score(mean: float, std: float | None) -> str:
@@ -69,15 +98,17 @@ DEFAULT_CHECK_TASKS = ["Hopper-v5", "HalfCheetah-v5", "Reacher-v5", "pick-place-
 def check_envs(
     task_names: Annotated[Optional[list[str]], typer.Argument(
         metavar="[TASKS]...", help="task names, domains or splits (default: a few tasks of each runnable domain)")] = None,
-    episodes: Annotated[int, typer.Option(help="random-policy episodes per task")] = 10,
-    seed: int = 0,
+    episodes: Annotated[int, typer.Option(min=1, help="random-policy episodes per task")] = 10,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
     out: Annotated[Optional[Path], typer.Option(help="also write the results to this CSV file")] = None,
 ) -> None:
     """Run a uniform-random policy on real envs; compare its return with the paper's and time the env."""
     from vintix.tasks.check import random_policy_returns
 
     try:
-        specs = [t for t in resolve_tasks(task_names or DEFAULT_CHECK_TASKS) if t.domain != "bidexhands"]
+        specs = _runnable_tasks(task_names or DEFAULT_CHECK_TASKS)
+        if out is not None:
+            check_output_path(out)  # before the rollouts, not after them
     except VintixError as error:
         raise _fail(error)
     results = [random_policy_returns(t.name, episodes, seed) for t in track(specs, description="random rollouts")]
@@ -147,8 +178,8 @@ def collect(
 @demonstrator_app.command("train")
 def demonstrator_train(
     task: Annotated[str, typer.Option(help="a task of the group to train for (one policy per encoder group)")],
-    timesteps: Annotated[Optional[int], typer.Option(help="env steps (default: the group's recipe)")] = None,
-    seed: int = 0,
+    timesteps: Annotated[Optional[int], typer.Option(min=1, help="env steps (default: the group's recipe)")] = None,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
     out: Annotated[Optional[Path], typer.Option(help="folder for the weights (default: the package's shipped ones)")] = None,
 ) -> None:
     """Train a MuJoCo or Industrial Benchmark demonstrator with Stable-Baselines3 and save its weights."""
@@ -179,17 +210,22 @@ def demonstrator_train(
 @demonstrator_app.command("eval")
 def demonstrator_eval(
     task: Annotated[list[str], typer.Option(help="task, domain or split; repeat for several")],
-    episodes: Annotated[int, typer.Option(help="episodes per policy, each in its own env (seed + i)")] = 20,
-    seed: int = 0,
-    table: Annotated[Optional[Path], typer.Option(help="score table to update (default: the package's scores.csv)")] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="episodes per policy, each in its own env (seed + i)")] = 20,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
+    out: Annotated[Path, typer.Option(help="score table to add the measured rows to (created if missing)")] = Path(
+        "demonstrator-scores.csv"),
+    update_package_table: Annotated[bool, typer.Option(
+        "--update-package-table", help="also rewrite the package's reference table (demonstrators/scores.csv), "
+        "which normalizes every 'ours' result")] = False,
 ) -> None:
-    """Score demonstrators and a uniform-random policy; record both in the score table."""
+    """Score demonstrators and a uniform-random policy; record both in a score table (--out)."""
     from vintix.demonstrators import load_demonstrator
-    from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores
+    from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores, scores_path
 
     try:
-        specs = [t for t in resolve_tasks(task) if t.domain != "bidexhands"]
+        specs = _runnable_tasks(task)
         demonstrators = [load_demonstrator(spec.name) for spec in specs]
+        check_output_path(out)
     except VintixError as error:
         raise _fail(error)
     command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"
@@ -207,7 +243,9 @@ def demonstrator_eval(
                        _score(spec.paper_expert.mean, spec.paper_expert.std),
                        _score(spec.paper_random.mean, spec.paper_random.std), f"{normalized:.2f}")
     console.print(result)
-    console.print(f"wrote {len(rows)} scores to {record_scores(rows, table)}")
+    console.print(f"wrote {len(rows)} scores to {record_scores(rows, out)}")
+    if update_package_table:
+        console.print(f"updated the package's reference table {record_scores(rows, scores_path())}")
 
 
 @demonstrator_app.command("list")
@@ -290,7 +328,7 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
 def data_plot(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
     out: Annotated[Path, typer.Option(help="folder for the PNG figures")] = Path("figs"),
-    bins: Annotated[int, typer.Option(help="bins along the history")] = 50,
+    bins: Annotated[int, typer.Option(min=1, help="bins along the history")] = 50,
     reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
 ) -> None:
     """Paper Figure 3: IQM of normalized episode return along the histories, per task and per domain."""
@@ -327,8 +365,8 @@ def train_command(
 @bench_app.command("train")
 def bench_train(
     presets: Annotated[Optional[list[str]], typer.Argument(metavar="[PRESETS]...", help="model presets (default: tiny small)")] = None,
-    batch_size: Annotated[int, typer.Option(help="windows per step")] = 4,
-    steps: Annotated[int, typer.Option(help="timed steps per preset (after one warm-up step)")] = 3,
+    batch_size: Annotated[int, typer.Option(min=1, help="windows per step")] = 4,
+    steps: Annotated[int, typer.Option(min=1, help="timed steps per preset (after one warm-up step)")] = 3,
     device: Annotated[str, typer.Option(help="cpu or cuda")] = "cpu",
 ) -> None:
     """Training tokens/s and MFU per preset, MFU against this device's matmul rate measured in the same run."""
@@ -336,8 +374,11 @@ def bench_train(
 
     import torch
 
+    from vintix.model.model import preset
     from vintix.train.bench import benchmark_training, parameter_count
 
+    for name in presets or []:
+        preset(name)  # an unknown name fails now, not after the matmul measurement
     peak, results = benchmark_training(presets or ["tiny", "small"], batch_size, steps, torch.device(device))
     table = Table(title=f"training speed on {device} ({torch.get_num_threads()} threads, load average "
                         f"{os.getloadavg()[0]:.2f}); matmul peak {peak / 1e9:,.1f} GFLOP/s")
@@ -354,10 +395,10 @@ def bench_train(
 @bench_app.command("infer")
 def bench_infer(
     presets: Annotated[Optional[list[str]], typer.Argument(metavar="[PRESETS]...", help="model presets (default: tiny small paper)")] = None,
-    envs: Annotated[Optional[list[int]], typer.Option(help="batch sizes (default: 1 and 16)")] = None,
-    repeats: Annotated[int, typer.Option(help="timed cached steps per measurement (median)")] = 20,
+    envs: Annotated[Optional[list[int]], typer.Option(min=1, help="batch sizes (default: 1 and 16)")] = None,
+    repeats: Annotated[int, typer.Option(min=1, help="timed cached steps per measurement (median)")] = 20,
     recompute: Annotated[bool, typer.Option(help="also time a full-window recompute (minutes at the paper's size)")] = True,
-    threads: Annotated[Optional[int], typer.Option(help="torch intra-op threads (default: torch's)")] = None,
+    threads: Annotated[Optional[int], typer.Option(min=1, help="torch intra-op threads (default: torch's)")] = None,
 ) -> None:
     """Agent step latency and throughput: KV cache (first-full vs steady) vs full-window recompute."""
     import os
@@ -365,7 +406,10 @@ def bench_infer(
     import torch
 
     from vintix.agent.bench import literal_steady_state, memory_needed, time_inference
+    from vintix.model.model import preset
 
+    for name in presets or []:
+        preset(name)  # an unknown name fails before any timing
     if threads:
         torch.set_num_threads(threads)
     memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -414,8 +458,8 @@ def eval_command(
     label: Annotated[Optional[str], typer.Option(help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
     device: str = "cpu",
-    threads: Annotated[int, typer.Option(help="torch CPU threads; 1 suits small models, whose steps are many tiny ops "
-                                         "that a second thread slows down on a busy machine")] = 1,
+    threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
+                                         "tiny ops that a second thread slows down on a busy machine")] = 1,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
@@ -423,9 +467,11 @@ def eval_command(
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.evaluate import EvalConfig, evaluate, parse_variation, shot_curves, shots_to_show, summarize
+    from vintix.evaluate.scores import check_table
 
     torch.set_num_threads(threads)
     try:
+        check_table(reference)  # summarize() would otherwise meet it only after the whole run
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
                             prompt_steps=prompt_steps, batch_envs=batch_envs)
@@ -463,7 +509,7 @@ def report_command(
     results: Annotated[list[Path], typer.Argument(help="`vintix eval` output folders (several: compared side by side)")],
     out: Annotated[Path, typer.Option(help="folder for report.md and figures/")] = Path("report"),
     reference: Annotated[str, typer.Option(help="reference table: paper or ours")] = "paper",
-    plateau_shots: Annotated[int, typer.Option(help="k of the best-k-shot plateau (converged score)")] = 10,
+    plateau_shots: Annotated[int, typer.Option(min=1, help="k of the best-k-shot plateau (converged score)")] = 10,
 ) -> None:
     """Markdown report with PNG figures: score vs shot per task and domain, converged vs the paper's."""
     from vintix.report import write_report

@@ -33,3 +33,11 @@ class DatasetError(VintixError, ValueError):
 
     def __str__(self) -> str:
         return f"{self.path}: {self.problem}"
+
+
+class OutputPathError(VintixError, OSError):
+    """An output path that cannot be written because a file sits where a folder has to be."""
+
+
+class DeviceError(VintixError, ValueError):
+    """A torch device name that is unknown, or that this machine does not have (CUDA without a GPU)."""

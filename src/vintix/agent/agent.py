@@ -24,13 +24,23 @@ import torch
 from vintix.agent.cache import KVCache, cached_backbone
 from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
-from vintix.model.checkpoint import load_pretrained
+from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix
 from vintix.tasks import get_task, make_env
+from vintix.train.checkpoint import intact_alternative_hint
 
 
 class AgentInputError(VintixError, ValueError):
     """An observation, reward or prompt the agent cannot take (wrong shape, NaN or inf)."""
+
+
+class AgentStateError(VintixError, RuntimeError):
+    """An agent used out of order (acting, prompting or keeping envs before `Agent.reset`)."""
+
+
+class AgentOutputError(VintixError, ArithmeticError):
+    """The model computed a NaN or inf action (damaged weights, or a numerical overflow): the agent
+    raises instead of sending it, as clipping cannot make NaN an action within the env's bounds."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +128,14 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
     return AgentTask(task, group, mean, std, reward_scale, source, low, high)
 
 
+def _numbers(what: str, values: object, dtype: type) -> np.ndarray:
+    """`values` as a numeric array; text or ragged lists are an AgentInputError naming `what`."""
+    try:
+        return np.asarray(values, dtype=dtype)
+    except (TypeError, ValueError) as error:
+        raise AgentInputError(f"{what} must be numbers: {error}") from error
+
+
 def _registry_dims(task: str) -> tuple[int, int] | None:
     try:
         spec = get_task(task)
@@ -173,8 +191,14 @@ class Agent:
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
         """An agent around the model saved in `directory`: a checkpoint (see `vintix.model.save_pretrained`),
         a training run's folder (its best checkpoint, else its newest), or a shipped model's name
-        (`vintix.agent.shipped_models`, e.g. ``"cpu-suite"``)."""
-        return cls(load_pretrained(resolve_checkpoint(directory), device))
+        (`vintix.agent.shipped_models`, e.g. ``"cpu-suite"``). A damaged checkpoint of a training run
+        raises CheckpointError naming the run's newest intact one: evaluating another step than the
+        one asked for is the user's choice, never a silent fallback."""
+        resolved = resolve_checkpoint(directory)
+        try:
+            return cls(load_pretrained(resolved, device))
+        except CheckpointError as error:
+            raise CheckpointError(f"{error}{intact_alternative_hint(resolved)}") from error
 
     @property
     def device(self) -> torch.device:
@@ -189,9 +213,9 @@ class Agent:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
         `action_spaces` (default: each task's registry env's action space)."""
         if not tasks:
-            raise ValueError("reset needs at least one task")
+            raise AgentInputError("reset needs at least one task")
         if action_spaces is not None and len(action_spaces) != len(tasks):
-            raise ValueError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces")
+            raise AgentInputError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces; give one per task")
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
         self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces)]
         self._regroup()
@@ -209,10 +233,10 @@ class Agent:
         order); the others are dropped with their context. The kept envs act exactly as they would
         have: this lets a batch shrink as its envs finish, instead of stepping them to no purpose."""
         if self.cache is None:
-            raise RuntimeError("call agent.reset(tasks) before agent.keep(...)")
+            raise AgentStateError("call agent.reset(tasks) before agent.keep(...)")
         envs = list(envs)
         if not envs or not all(0 <= i < len(self.tasks) for i in envs):
-            raise ValueError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
+            raise AgentInputError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
         # Each env's previous action lives in its group's rows; gather them per old env index first.
         previous: dict[int, torch.Tensor] = {}
         for group, batch in self._groups.items():
@@ -260,19 +284,20 @@ class Agent:
         """One step of every env: actions (clipped to each env's bounds), one array per env.
 
         ``prev_rewards[i]`` is the reward env ``i`` returned for the agent's previous action; it is
-        ignored where ``episode_starts[i]`` (the first observation of an episode).
+        ignored where ``episode_starts[i]`` (the first observation of an episode). A NaN/inf action
+        from the model raises `AgentOutputError`: every action returned is finite and within bounds.
         """
         if self.cache is None:
-            raise RuntimeError("call agent.reset(tasks) before agent.act(...)")
+            raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
-        starts = np.asarray(episode_starts, dtype=bool).reshape(-1)
-        rewards = np.where(starts, 0.0, np.asarray(prev_rewards, dtype=np.float64).reshape(-1))
+        starts = _numbers("episode_starts", episode_starts, bool).reshape(-1)
+        rewards = np.where(starts, 0.0, _numbers("prev_rewards", prev_rewards, np.float64).reshape(-1))
         if len(obs) != batch or starts.shape != (batch,) or rewards.shape != (batch,):
             raise AgentInputError(
                 f"the agent was reset with {batch} envs; got {len(obs)} observations, {rewards.shape[0]} rewards, "
                 f"{starts.shape[0]} episode starts"
             )
-        observations = [np.asarray(o, dtype=np.float32) for o in obs]
+        observations = [_numbers(f"observation of env {i}", o, np.float32) for i, o in enumerate(obs)]
         for i, task in enumerate(self.tasks):
             self._check("observation", i, observations[i], (self.model.groups[task.group].obs_dim,))
             self._check("previous reward", i, rewards[i : i + 1], (1,))
@@ -282,6 +307,13 @@ class Agent:
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, batch in self._groups.items():
             action = torch.clamp(self.model.head(group, hidden[batch.envs]), batch.action_low, batch.action_high)
+            finite = torch.isfinite(action).all(dim=1)  # clamp passes NaN through
+            if not finite.all():
+                env = int(batch.envs[~finite][0])
+                raise AgentOutputError(
+                    f"env {env} ({self.tasks[env].task}): the model's action is NaN/inf for finite inputs; its "
+                    "weights are damaged or it overflowed. Load another checkpoint (an earlier one of the run)"
+                )
             self._prev_action[group] = action
             for i, a in zip(batch.envs.tolist(), action.cpu().numpy()):
                 actions[i] = a
@@ -295,15 +327,21 @@ class Agent:
         """Feed stored steps (rows of a learning history, one array ``[T, ...]`` per env, the same T
         for every env and at most the window) as context before acting: a prompted, not cold, start."""
         if self.cache is None:
-            raise RuntimeError("call agent.reset(tasks) before agent.prompt(...)")
+            raise AgentStateError("call agent.reset(tasks) before agent.prompt(...)")
         steps = len(step_nums[0])
         if any(len(s) != steps for s in step_nums):
             raise AgentInputError("every env's prompt must have the same number of steps")
+        if self.cache.length + steps > self.cache.window:  # one chunk must not wrap around the sliding window
+            raise AgentInputError(
+                f"a prompt of {steps} steps after {self.cache.length} does not fit the model's {self.cache.window}-step "
+                "window; prompt with at most the window (vintix eval: a smaller --prompt-steps)"
+            )
         for i, task in enumerate(self.tasks):
             spec = self.model.groups[task.group]
-            self._check("prompt observations", i, np.asarray(observations[i]), (steps, spec.obs_dim))
-            self._check("prompt actions", i, np.asarray(actions[i]), (steps, spec.act_dim))
-            self._check("prompt rewards", i, np.asarray(rewards[i]), (steps,))
+            self._check("prompt observations", i, _numbers("prompt observations", observations[i], np.float64),
+                        (steps, spec.obs_dim))
+            self._check("prompt actions", i, _numbers("prompt actions", actions[i], np.float64), (steps, spec.act_dim))
+            self._check("prompt rewards", i, _numbers("prompt rewards", rewards[i], np.float64), (steps,))
         # Row t of a history: o_t, a_t taken at o_t, r_t after it; token t carries a_{t-1}, r_{t-1}.
         shifted = {
             g: torch.as_tensor(

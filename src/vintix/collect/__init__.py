@@ -1,6 +1,13 @@
 """Stage 3: continuous noise distillation, collecting learning histories (paper Algorithm 1)."""
 
-from vintix.collect.collector import CollectionPlan, HistorySummary, collect, history_seeds
+from vintix.collect.collector import (
+    CollectionError,
+    CollectionPlan,
+    CollectionSettingsError,
+    HistorySummary,
+    collect,
+    history_seeds,
+)
 from vintix.collect.noise import NoiseSchedule, mix_action
 
-__all__ = ["CollectionPlan", "HistorySummary", "NoiseSchedule", "collect", "history_seeds", "mix_action"]
+__all__ = ["CollectionError", "CollectionPlan", "CollectionSettingsError", "HistorySummary", "NoiseSchedule", "collect", "history_seeds", "mix_action"]

@@ -6,6 +6,10 @@ in fixed batches (indices 0..k-1, k..2k-1, ...) whose envs step in lockstep so t
 runs batched; a batch is re-collected whole unless all its files exist. Files appear only when
 complete, so re-running an interrupted collection finishes exactly what is missing, and gives the
 same bytes as an uninterrupted run even if the demonstrator's batched numerics depend on the batch.
+
+Each history records the settings it was made with (root attributes: env seed, base seed, steps,
+noise schedule). Re-running into a folder whose histories were made with other settings is refused
+(`CollectionSettingsError`): skipping them as "already done" would silently keep the wrong data.
 """
 
 from __future__ import annotations
@@ -22,7 +26,17 @@ from tqdm import tqdm
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.demonstrators import Demonstrator, load_demonstrator
+from vintix.errors import VintixError
+from vintix.fields import check_field_types
 from vintix.tasks import TaskSpec, get_task, make_env
+
+
+class CollectionError(VintixError, ValueError):
+    """A collection plan that cannot run (a setting out of range)."""
+
+
+class CollectionSettingsError(CollectionError):
+    """The output folder already holds histories made with other settings."""
 
 
 @dataclass(frozen=True)
@@ -39,6 +53,21 @@ class CollectionPlan:
     """Base seed; history i of task t is seeded from (seed, t, i)."""
     envs_per_batch: int = 4
     """Histories stepped in lockstep in one process (one batched demonstrator call per step)."""
+
+    def __post_init__(self) -> None:
+        check_field_types(self, CollectionError)
+        bad = [f"{k}={v}" for k, v in (("histories", self.histories), ("steps", self.steps),
+                                       ("envs_per_batch", self.envs_per_batch)) if v < 1]
+        bad += [f"seed={self.seed}"] if self.seed < 0 else []  # numpy seed sequences are unsigned
+        if bad:
+            raise CollectionError(f"{self.task}: {', '.join(bad)}; histories, steps and envs_per_batch must be >= 1, "
+                                  "seed >= 0")
+
+    def recorded_settings(self, index: int) -> dict[str, int | float]:
+        """What history `index` of this plan records about how it was made (its file's root attributes)."""
+        return {"env_seed": history_seeds(get_task(self.task).name, index, self.seed)[0], "collection_seed": self.seed,
+                "steps": self.steps, "curvature": self.schedule.curvature,
+                "noise_free_fraction": self.schedule.noise_free_fraction}
 
 
 @dataclass(frozen=True)
@@ -82,8 +111,8 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     envs = [make_env(spec.name, seed=env_seed) for env_seed, _ in seeds]
     low, high = envs[0].action_space.low, envs[0].action_space.high
     epsilons = plan.schedule.epsilon(np.arange(plan.steps), plan.steps)
-    writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim, attrs={"env_seed": env_seed})
-               for i, (env_seed, _) in zip(indices, seeds)]
+    writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim,
+                                     attrs=plan.recorded_settings(i)) for i in indices]
     try:
         observations = np.stack([env.reset()[0] for env in envs])
         step_nums = np.zeros(len(envs), dtype=np.int64)
@@ -111,6 +140,28 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
             env.close()
 
 
+def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[str]:
+    """How an existing history `index` differs from what `plan` would make: ``"steps 1000 (now 500)"``.
+    Files without recorded settings (older or published ones) are compared on their length alone."""
+    with LearningHistory(path) as history:
+        found = {**history.attrs, "steps": history.num_steps}
+    return [f"{key} {found[key]!r} (now {value!r})" for key, value in plan.recorded_settings(index).items()
+            if key in found and found[key] != value]
+
+
+def _check_existing_histories(plan: CollectionPlan, root: Path) -> None:
+    spec = get_task(plan.task)
+    for index in range(plan.histories):
+        path = history_path(root, spec, index)
+        differences = settings_differences(path, plan, index) if path.exists() else []
+        if differences:
+            raise CollectionSettingsError(
+                f"{path.parent} holds histories made with other settings ({path.name}: {', '.join(differences)}), "
+                "so there is nothing to resume; collect into another --out, re-run with the folder's settings, or "
+                f"delete {path.parent} to collect it anew"
+            )
+
+
 def _collect_batch_in_worker(args: tuple[CollectionPlan, list[int], Path, Demonstrator | None, int]) -> list[Path]:
     import torch
 
@@ -127,12 +178,11 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
     plans = [plans] if isinstance(plans, CollectionPlan) else list(plans)
     root = Path(root)
     if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+        raise CollectionError(f"workers must be >= 1, got {workers}")
     jobs = []
     for plan in plans:
         spec = get_task(plan.task)
-        if plan.histories < 1 or plan.steps < 1:
-            raise ValueError(f"{plan.task}: need histories and steps >= 1, got {plan.histories} and {plan.steps}")
+        _check_existing_histories(plan, root)
         if demonstrator is None:
             load_demonstrator(spec.name)  # fail before writing anything for a task without one
         # The noise-free tail fraction tells expert distillation (a training ablation) which rows to keep.

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vintix.fields import check_field_types
+
 
 @dataclass(frozen=True)
 class NoiseSchedule:
@@ -23,6 +25,7 @@ class NoiseSchedule:
     expert data for the expert-distillation baseline)."""
 
     def __post_init__(self) -> None:
+        check_field_types(self, ValueError)  # recipes are YAML: "fast" must not reach a comparison
         if self.curvature <= 0:
             raise ValueError(f"noise schedule curvature p must be > 0, got {self.curvature}")
         if not 0 <= self.noise_free_fraction <= 1:

@@ -22,7 +22,7 @@ from typing import Any
 
 import yaml
 
-from vintix.collect.collector import CollectionPlan
+from vintix.collect.collector import CollectionError, CollectionPlan
 from vintix.collect.noise import NoiseSchedule
 from vintix.tasks import resolve_tasks
 
@@ -45,18 +45,29 @@ def recipe_path(name_or_path: str | Path) -> Path:
 def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
     unknown = set(settings) - PLAN_KEYS - SCHEDULE_KEYS
     if unknown:
-        raise ValueError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(PLAN_KEYS | SCHEDULE_KEYS)}")
-    schedule = NoiseSchedule(**{k: float(v) for k, v in settings.items() if k in SCHEDULE_KEYS})
-    return CollectionPlan(task=task, schedule=schedule, **{k: int(v) for k, v in settings.items() if k in PLAN_KEYS})
+        raise CollectionError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(PLAN_KEYS | SCHEDULE_KEYS)}")
+    needed = sorted({"histories", "steps"} - set(settings))
+    if needed:
+        raise CollectionError(f"{where}: no {' or '.join(needed)} (set them under 'defaults:' or the task)")
+    try:  # the plan and schedule check their own types and ranges (no int() that would truncate 2.5)
+        schedule = NoiseSchedule(**{k: v for k, v in settings.items() if k in SCHEDULE_KEYS})
+        return CollectionPlan(task=task, schedule=schedule, **{k: v for k, v in settings.items() if k in PLAN_KEYS})
+    except ValueError as error:
+        raise CollectionError(f"{where}: {error}") from error
 
 
 def load_recipe(name_or_path: str | Path) -> list[CollectionPlan]:
     """The collection plans of a recipe, one per task, task settings overriding the defaults."""
     path = recipe_path(name_or_path)
-    recipe = yaml.safe_load(path.read_text()) or {}
+    try:
+        recipe = yaml.safe_load(path.read_text()) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise CollectionError(f"{path}: not a YAML recipe ({error})") from error
     if not isinstance(recipe, dict) or not isinstance(recipe.get("tasks"), dict) or not recipe["tasks"]:
-        raise ValueError(f"{path}: a recipe needs a non-empty 'tasks:' mapping (and optionally 'defaults:')")
+        raise CollectionError(f"{path}: a recipe needs a non-empty 'tasks:' mapping (and optionally 'defaults:')")
     defaults = recipe.get("defaults") or {}
+    if not isinstance(defaults, dict) or not all(isinstance(v, dict) or v is None for v in recipe["tasks"].values()):
+        raise CollectionError(f"{path}: 'defaults:' and each task's settings must be mappings, e.g. reach-v3: {{steps: 500}}")
     plans: dict[str, CollectionPlan] = {}
     for selector, settings in recipe["tasks"].items():
         for spec in resolve_tasks([selector]):

@@ -9,6 +9,11 @@ A history file holds groups of at most 10,000 consecutive steps named ``"<start>
 inclusive), each with ``proprio_observation`` float32 (n, obs_dim), ``action`` float32 (n, act_dim),
 ``reward`` float32 (n,) and ``step_num`` int32 (n,). Row i is (o_i, a_i taken at o_i, r_i after a_i);
 ``step_num == 0`` marks an episode start and a file starts with one.
+
+Our writer stores every dataset in chunks of whole rows with HDF5's Fletcher-32 checksum filter, so
+a block damaged on disk fails to read (a `DatasetError` naming the file) instead of feeding wrong
+numbers to training. Chunking and filters are invisible to readers of the official format, and files
+without checksums (the published dataset) read as before.
 """
 
 from __future__ import annotations
@@ -28,11 +33,15 @@ from typing import Any
 import h5py
 import numpy as np
 
-from vintix.atomic import atomic_write_text, partial_path, publish
+from vintix.atomic import atomic_write_text, make_parent_dirs, partial_path, publish
 from vintix.errors import DatasetError
 
 MAX_GROUP_ROWS = 10_000
 """Most rows a step group may hold in the official format."""
+
+CHECKSUM_CHUNK_ROWS = 1_000
+"""Rows per checksummed HDF5 chunk: a training window (~1,000 rows) touches one or two chunks per
+dataset, and a damaged byte makes only its own chunk unreadable."""
 
 DTYPES: dict[str, np.dtype] = {
     "proprio_observation": np.dtype(np.float32),
@@ -63,13 +72,18 @@ _HDF5_FAILURES = (OSError, RuntimeError)
 
 @contextmanager
 def translate_hdf5_errors(path: Path) -> Iterator[None]:
-    """Turn HDF5 library failures, raised deep inside h5py, into a DatasetError that names the file."""
+    """Turn HDF5 library failures, raised deep inside h5py, into a DatasetError that names the file.
+
+    A block that fails its Fletcher-32 checksum surfaces here too (h5py raises OSError, "filter
+    returned failure during read"), like a truncated file or overwritten metadata.
+    """
     try:
         yield
     except _HDF5_FAILURES as err:
-        raise DatasetError(
-            path, f"not a readable HDF5 file (truncated or corrupted?): {err}; re-collect or delete it"
-        ) from err
+        # HDF5 reports a failed checksum (or decompression) only as a filter failure.
+        what = ("a data block failed its checksum (corrupted on disk)" if "filter returned failure" in str(err)
+                else "not a readable HDF5 file (truncated or corrupted?)")
+        raise DatasetError(path, f"{what}: {err}; re-collect or delete it") from err
 
 
 def open_hdf5(path: PathLike) -> h5py.File:
@@ -240,9 +254,10 @@ class LearningHistoryWriter:
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
         if not (_is_dim(obs_dim) and _is_dim(act_dim)):
-            raise ValueError(f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
-        if not 1 <= chunk_size <= MAX_GROUP_ROWS:
-            raise ValueError(f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got {chunk_size}")
+            raise DatasetError(self.path, f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
+        if not (_is_dim(chunk_size) and chunk_size <= MAX_GROUP_ROWS):
+            raise DatasetError(self.path, f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got "
+                               f"{chunk_size!r}")
         self.obs_dim, self.act_dim, self.chunk_size = obs_dim, act_dim, chunk_size
         self._partial = partial_path(self.path)
         # Rows wait in fixed buffers of one group, so single-step appends cost a copy, not an HDF5 write.
@@ -251,7 +266,7 @@ class LearningHistoryWriter:
         self._filled = 0
         self._flushed = 0
         self._last_step = -1
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        make_parent_dirs(self.path)
         self._file: h5py.File | None = h5py.File(self._partial, "w")
         self._file.attrs.update(attrs or {})
 
@@ -268,7 +283,7 @@ class LearningHistoryWriter:
         and step_num counting 0, 1, 2, ... within episodes starting from 0 at the file's first row.
         """
         if self._file is None:
-            raise ValueError(f"{self.path}: append() after close() or abort()")
+            raise DatasetError(self.path, "append() after close() or abort(); open a new writer")
         rows = self._checked_rows(obs, action, reward, step_num)
         n, offset = len(rows["step_num"]), 0
         while offset < n:
@@ -321,7 +336,10 @@ class LearningHistoryWriter:
         start, n = self._flushed, self._filled
         group = self._file.create_group(f"{start}-{start + n - 1}")
         for key, buffer in self._buffer.items():
-            group.create_dataset(key, data=buffer[:n])
+            rows = buffer[:n]
+            # fletcher32 needs a chunked layout; chunks of whole rows keep row-range reads cheap.
+            group.create_dataset(key, data=rows, chunks=(min(n, CHECKSUM_CHUNK_ROWS), *rows.shape[1:]),
+                                 fletcher32=True)
         self._flushed += n
         self._filled = 0
 
@@ -397,9 +415,16 @@ class LearningHistory:
         return self._layout
 
     @property
+    def attrs(self) -> dict[str, Any]:
+        """The file's root attributes as Python values (our writer's ``attrs``; published files have none)."""
+        with translate_hdf5_errors(self.path):
+            return {key: value.item() if isinstance(value, np.generic) else value
+                    for key, value in self._file.attrs.items()}
+
+    @property
     def env_seed(self) -> int | None:
         """Seed of the env the history was collected on (our files), None for files without it."""
-        seed = self._file.attrs.get("env_seed")
+        seed = self.attrs.get("env_seed")
         return None if seed is None else int(seed)
 
     @property

@@ -20,7 +20,7 @@ from scipy.stats import trim_mean
 
 from vintix.atomic import atomic_path
 from vintix.data.hdf5 import LearningHistory, PathLike, find_tasks
-from vintix.errors import UnknownTaskError
+from vintix.errors import UnknownTaskError, VintixError
 
 
 def normalized_curve(episode_returns: np.ndarray, episode_lengths: np.ndarray, random: float, expert: float,
@@ -60,6 +60,8 @@ def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table:
     reference in the table."""
     from vintix.evaluate.scores import reference
 
+    if bins < 1:
+        raise VintixError(f"bins must be >= 1, got {bins}")
     out = Path(out)
     by_domain: dict[str, dict[str, np.ndarray]] = defaultdict(dict)
     skipped = []

@@ -3,8 +3,10 @@
 The paper's published scores come from other env versions (MuJoCo v4, Meta-World v2) and other
 demonstrators, so normalizing by our demonstrators' measured scores is the fair yardstick for data
 we collect; `scores.csv` beside this file keeps them, one row per (task, policy), each with how it
-was measured (episodes, seed, env and package versions, date, command). `vintix demonstrator eval`
-adds or replaces rows.
+was measured (episodes, seed, env and package versions, date, command). That table normalizes every
+result, so it is reference data, read-only at run time: `vintix demonstrator eval` writes what it
+measures to a table in the user's folder, and rewrites the package's only when asked to
+(``--update-package-table``).
 """
 
 from __future__ import annotations
@@ -103,9 +105,11 @@ def read_scores(path: Path | None = None) -> list[MeasuredScore]:
                              "episodes": int(row["episodes"]), "seed": int(row["seed"])}) for row in rows]
 
 
-def record_scores(new: Sequence[MeasuredScore], path: Path | None = None) -> Path:
-    """Add rows to the score table, replacing any earlier row of the same (task, policy)."""
-    path = path or scores_path()
+def record_scores(new: Sequence[MeasuredScore], path: Path) -> Path:
+    """Add rows to the score table at `path`, replacing any earlier row of the same (task, policy).
+
+    `path` has no default: rewriting the package's reference table (`scores_path()`) has to be asked for.
+    """
     replaced = {(s.task, s.policy) for s in new}
     rows = [s for s in read_scores(path) if (s.task, s.policy) not in replaced] + list(new)
     rows.sort(key=lambda s: (s.task, POLICIES.index(s.policy)))

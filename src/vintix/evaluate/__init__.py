@@ -2,6 +2,7 @@
 
 from vintix.evaluate.run import (
     EvalConfig,
+    EvalConfigError,
     evaluate,
     in_context_score,
     in_context_scorer,
@@ -17,6 +18,7 @@ from vintix.evaluate.summary import best_k_plateau, iqm, iqm_with_ci
 __all__ = [
     "REFERENCE_TABLES",
     "EvalConfig",
+    "EvalConfigError",
     "Reference",
     "ReferenceScoreError",
     "best_k_plateau",

@@ -25,11 +25,12 @@ import torch
 from rich.progress import Progress
 
 from vintix.agent import Agent
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, check_output_path
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.scores import Reference, missing_reference_note, reference
 from vintix.evaluate.summary import best_k_plateau
+from vintix.fields import check_field_types
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, get_task, make_env, resolve_tasks
 from vintix.train.config import TrainConfig
@@ -38,6 +39,10 @@ from vintix.train.trainer import Scorer
 EPISODES_FILE = "episodes.csv"
 RUN_FILE = "run.json"
 GOAL_PROTOCOL = "one hidden goal per env for its life, drawn from the env seed (ML45 meta-RL protocol)"
+
+
+class EvalConfigError(VintixError, ValueError):
+    """An evaluation setting out of its range (the message names it)."""
 
 
 @dataclass
@@ -62,6 +67,18 @@ class EvalConfig:
     """prompt length in steps (default: half the model's window)"""
     batch_envs: int = 64
     """most envs stepped through one agent at once (the KV cache grows with it)"""
+
+    def __post_init__(self) -> None:
+        # Checked before any env runs: shots=0 used to crash only after the whole evaluation.
+        check_field_types(self, EvalConfigError)
+        bad = [f"{k}={v}" for k, v in (("shots", self.shots), ("seeds", self.seeds), ("batch_envs", self.batch_envs),
+                                       ("prompt_steps", self.prompt_steps or 1)) if v < 1]
+        bad += [f"first_seed={self.first_seed}"] if self.first_seed < 0 else []  # env seeds are unsigned
+        if bad:
+            raise EvalConfigError(f"{', '.join(bad)}: shots, seeds, batch_envs and prompt_steps must be >= 1, "
+                                  "first_seed >= 0")
+        if not [name for selector in self.tasks for name in selector.split(",") if name.strip()]:
+            raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
 
 
 @dataclass(frozen=True)
@@ -261,6 +278,8 @@ def evaluate(
 ) -> tuple[list[dict[str, Any]], list[str]]:
     """Run `config` with `agent`; write the results under `out` if given. Returns the episode rows
     and notes (skipped tasks, missing references) for the user."""
+    if out is not None:
+        check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
     specs, notes = select_tasks(config.tasks, list(agent.model.groups))
     refs, missing = references([s.name for s in specs])
     started = time.time()

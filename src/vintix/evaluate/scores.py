@@ -45,8 +45,16 @@ class Reference:
         return (np.asarray(returns, dtype=np.float64) - self.random) / (self.expert - self.random)
 
 
+def check_table(table: str) -> str:
+    """`table` if it names a reference table; a ReferenceScoreError listing them otherwise."""
+    if table not in REFERENCE_TABLES:
+        raise ReferenceScoreError(f"unknown reference table {table!r}; choose one of {', '.join(REFERENCE_TABLES)}")
+    return table
+
+
 def reference(task: str, table: str = "paper") -> Reference | None:
     """`task`'s reference in `table` ('paper' or 'ours'); None when the table has no score for it."""
+    check_table(table)
     spec = get_task(task)
     if table == "paper":
         return Reference(spec.paper_random.mean, spec.paper_expert.mean, spec.paper_expert.provenance)
@@ -58,7 +66,7 @@ def reference(task: str, table: str = "paper") -> Reference | None:
             return None
         random, expert = found
         return Reference(random.mean, expert.mean, expert.provenance)
-    raise ValueError(f"unknown reference table {table!r}; choose one of {', '.join(REFERENCE_TABLES)}")
+    raise AssertionError(table)  # check_table admitted a table this function does not know
 
 
 def missing_reference_note(tasks: list[str], table: str) -> str:

@@ -19,7 +19,7 @@ import torch
 from safetensors.torch import load_file, save_file
 
 from vintix.atomic import atomic_path, atomic_write_text
-from vintix.errors import VintixError
+from vintix.errors import DeviceError, VintixError
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
 
 WEIGHTS_FILE = "model.safetensors"
@@ -83,14 +83,36 @@ def build_model(meta: dict[str, Any]) -> Vintix:
     unknown = sorted(set(meta["config"]) - known)
     if unknown:
         raise CheckpointError(f"checkpoint config has fields {unknown} that this vintix's ModelConfig lacks")
-    config = ModelConfig(**meta["config"])
-    return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
+    try:
+        config = ModelConfig(**meta["config"])
+        return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
+    except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged model.json
+        raise CheckpointError(f"does not describe a model this vintix can build ({error}); the checkpoint is "
+                              "damaged or not vintix's") from error
+
+
+def torch_device(name: str | torch.device) -> torch.device:
+    """`name` as a torch device this machine has; a DeviceError says what to use instead."""
+    try:
+        device = torch.device(name)
+    except (RuntimeError, TypeError) as error:
+        raise DeviceError(f"unknown device {name!r}; use cpu or cuda") from error
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise DeviceError(f"device {name!r} requested but torch sees no GPU; use cpu")
+    if device.type not in ("cpu", "cuda"):
+        raise DeviceError(f"device {name!r} is not supported; use cpu or cuda")
+    return device
 
 
 def load_pretrained(directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Vintix:
     """The model saved in `directory`, in eval mode, on `device`."""
     directory = Path(directory)
-    model = build_model(read_metadata(directory))
+    device = torch_device(device)  # before reading gigabytes of weights
+    meta = read_metadata(directory)
+    try:
+        model = build_model(meta)
+    except CheckpointError as error:  # build_model cannot name the file it was read from
+        raise CheckpointError(f"{directory / CONFIG_FILE}: {error}") from error
     weights_path = directory / WEIGHTS_FILE
     if not weights_path.is_file():
         raise CheckpointError(f"{directory}: {CONFIG_FILE} is there but {WEIGHTS_FILE} is not; re-save it")
@@ -105,6 +127,13 @@ def load_pretrained(directory: str | os.PathLike[str], device: str | torch.devic
         raise CheckpointError(
             f"{weights_path} does not fit the model in {CONFIG_FILE}: missing {missing[:5]}, unexpected "
             f"{unexpected[:5]}, wrong shape {sorted(wrong_shape)[:5]}"
+        )
+    # A diverged run's weights are NaN: refuse them here rather than let a model act with NaN.
+    non_finite = sorted(k for k, v in weights.items() if v.is_floating_point() and not torch.isfinite(v).all())
+    if non_finite:
+        raise CheckpointError(
+            f"{weights_path}: {len(non_finite)} of {len(weights)} tensors hold NaN/inf (e.g. {non_finite[:3]}); the "
+            "training run diverged before this checkpoint: use an earlier one"
         )
     model.load_state_dict(weights)
     return model.to(device).eval()

@@ -20,13 +20,18 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from vintix.errors import UnknownTaskError
+from vintix.errors import UnknownTaskError, VintixError
+from vintix.fields import check_field_types
 
 # ----------------------------------------------------------------------------------------------
 # Configuration
 
 
 _ACTIVATIONS = {"gelu": nn.GELU, "leaky_relu": nn.LeakyReLU}
+
+
+class ModelConfigError(VintixError, ValueError):
+    """A model config with a field of the wrong type or out of range, or an unknown preset."""
 
 
 @dataclass
@@ -65,13 +70,22 @@ class ModelConfig:
         return self.obs_emb_dim + self.act_emb_dim + self.rew_emb_dim
 
     def __post_init__(self) -> None:
+        check_field_types(self, ModelConfigError)
+        sizes = {"n_layers": self.n_layers, "n_heads": self.n_heads, "obs_emb_dim": self.obs_emb_dim,
+                 "act_emb_dim": self.act_emb_dim, "rew_emb_dim": self.rew_emb_dim, "mlp_dim": self.mlp_dim,
+                 "context_len": self.context_len}
+        small = [f"{k}={v}" for k, v in sizes.items() if v < 1] + ([f"head_layers={self.head_layers}"]
+                                                                  if self.head_layers < 0 else [])
+        if small or not 0 <= self.dropout < 1 or not self.std_floor > 0:
+            raise ModelConfigError(f"sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor > 0; got "
+                             f"{', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}")
         if self.d_model % self.n_heads:
-            raise ValueError(
+            raise ModelConfigError(
                 f"d_model = {self.obs_emb_dim}+{self.act_emb_dim}+{self.rew_emb_dim} = "
                 f"{self.d_model} is not divisible by n_heads = {self.n_heads}"
             )
         if self.activation not in _ACTIVATIONS:
-            raise ValueError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}")
+            raise ModelConfigError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}")
 
 # tiny: ~0.8M backbone parameters, the size that learned in context on Meta-World within 15 CPU
 #   minutes (DESIGN §6); a 1024-step window holds 10 Meta-World or 4 Industrial Benchmark episodes.
@@ -95,7 +109,7 @@ PRESETS: dict[str, ModelConfig] = {
 def preset(name: str, **overrides: object) -> ModelConfig:
     """A fresh copy of a preset config, with any field overridden."""
     if name not in PRESETS:
-        raise ValueError(f"unknown model preset {name!r}; choose one of {sorted(PRESETS)}")
+        raise ModelConfigError(f"unknown model preset {name!r}; choose one of {sorted(PRESETS)}")
     return replace(PRESETS[name], **overrides)
 
 

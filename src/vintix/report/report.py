@@ -23,7 +23,7 @@ from matplotlib.figure import Figure  # figures straight to files: no pyplot sta
 from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
-from vintix.evaluate.scores import Reference, missing_reference_note, reference
+from vintix.evaluate.scores import Reference, check_table, missing_reference_note, reference
 from vintix.evaluate.summary import best_k_plateau, iqm_with_ci
 from vintix.tasks import get_task
 
@@ -43,31 +43,53 @@ class Results:
     """variant -> task name"""
 
 
+EPISODE_COLUMNS = {"task", "variation", "seed", "prompt_steps", "shot", "return", "domain", "split"}
+"""Columns of `episodes.csv` the report reads."""
+
+
 def _variant(task: str, variation: str) -> str:
     return f"{task} [{variation}]" if variation else task
 
 
 def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     """Read one results folder and normalize its returns with `table`; notes name tasks it lacks."""
+    check_table(table)
     episodes, run_file = folder / EPISODES_FILE, folder / RUN_FILE
     if not episodes.is_file() or not run_file.is_file():
         raise VintixError(f"{folder}: no {EPISODES_FILE} and {RUN_FILE}; point to a folder written by `vintix eval`")
-    run = json.loads(run_file.read_text())
+    rewrite = "re-run `vintix eval` into this folder"
+    try:
+        run = json.loads(run_file.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise VintixError(f"{run_file}: not valid JSON ({error}); {rewrite}") from error
+    if not isinstance(run, dict):
+        raise VintixError(f"{run_file}: expected a JSON object; {rewrite}")
     runs: dict[str, dict[tuple[int, str], dict[int, float]]] = defaultdict(lambda: defaultdict(dict))
     domains, tasks, refs, missing = {}, {}, {}, []
     with episodes.open() as f:
-        for row in csv.DictReader(f):
+        reader = csv.DictReader(f)
+        lacking = sorted(EPISODE_COLUMNS - set(reader.fieldnames or []))
+        if lacking:
+            raise VintixError(f"{episodes}: not a `vintix eval` episodes table (no column(s) {lacking}); {rewrite}")
+        line = 1
+        for line, row in enumerate(reader, start=2):
             task, variant = row["task"], _variant(row["task"], row["variation"])
-            if task not in refs:
-                refs[task] = reference(task, table)
-                if refs[task] is None:
-                    missing.append(task)
-            ref: Reference | None = refs[task]
-            if ref is None:
-                continue
-            runs[variant][(int(row["seed"]), row["prompt_steps"])][int(row["shot"])] = float(ref.normalize(float(row["return"])))
+            try:
+                if task not in refs:
+                    refs[task] = reference(task, table)
+                    if refs[task] is None:
+                        missing.append(task)
+                ref: Reference | None = refs[task]
+                if ref is None:
+                    continue
+                normalized = float(ref.normalize(float(row["return"])))
+                runs[variant][(int(row["seed"]), row["prompt_steps"])][int(row["shot"])] = normalized
+            except (ValueError, TypeError) as error:  # a hand-edited or foreign table
+                raise VintixError(f"{episodes}, line {line}: {error}; {rewrite}") from error
             domains[variant] = _variant(f"{row['domain']} {row['split']}", row["variation"])
             tasks[variant] = task
+    if line == 1:
+        raise VintixError(f"{episodes}: holds no episodes; {rewrite}")
     scores = {}
     for variant, by_run in runs.items():
         shots = min(len(s) for s in by_run.values())
@@ -137,6 +159,8 @@ def _ci(point: float, low: float, high: float) -> str:
 def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_shots: int = 10) -> tuple[Path, list[str]]:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
     Returns the report's path and notes (tasks without a reference score)."""
+    if plateau_shots < 1:
+        raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     loaded = [load_results(Path(folder), table) for folder in folders]
     results = [r for r, _ in loaded]
     notes = [n for _, ns in loaded for n in ns]

@@ -6,8 +6,11 @@ they hold for the env's whole life; the agent is never told about them.
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 
+from vintix.errors import UnsupportedOptionError
 from vintix.tasks.registry import TaskSpec
 
 
@@ -20,16 +23,23 @@ def make_mujoco_env(
     """gymnasium's env for `spec`, optionally with another viscosity (paper: 0.05, 0.1) or gravity
     scaled by `gravity_scale` (paper: 0.9, 1.1)."""
     env = gym.make(spec.name, render_mode=render_mode)
-    apply_physics_variation(env, viscosity=viscosity, gravity_scale=gravity_scale)
+    try:
+        apply_physics_variation(env, viscosity=viscosity, gravity_scale=gravity_scale)
+    except BaseException:
+        env.close()
+        raise
     return env
 
 
 def apply_physics_variation(env: gym.Env, viscosity: float | None = None, gravity_scale: float | None = None) -> None:
     """Change the medium's viscosity and/or scale gravity of a gymnasium MuJoCo env in place."""
     model = env.unwrapped.model  # type: ignore[attr-defined]
+    # MuJoCo takes any double, NaN included, and the episode then silently goes NaN.
+    if viscosity is not None and not (math.isfinite(viscosity) and viscosity >= 0):
+        raise UnsupportedOptionError(f"viscosity must be >= 0 and finite (paper: 0.05, 0.1), got {viscosity}")
+    if gravity_scale is not None and not math.isfinite(gravity_scale):
+        raise UnsupportedOptionError(f"gravity_scale must be finite (paper: 0.9, 1.1), got {gravity_scale}")
     if viscosity is not None:
-        if viscosity < 0:
-            raise ValueError(f"viscosity must be >= 0, got {viscosity}")
         model.opt.viscosity = viscosity
     if gravity_scale is not None:
         model.opt.gravity[:] = model.opt.gravity * gravity_scale

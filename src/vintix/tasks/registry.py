@@ -3,10 +3,11 @@
 The table ships inside the package (`paper_tasks.csv`, built by `scripts/build_task_table.py` from
 the paper's appendix tables) so nothing outside the package is read at run time.
 
-Naming: MuJoCo tasks use gymnasium's `-v5` ids. The paper's tables say `-v4`, but the dimensions
-it published are the v5 ones (Ant 105, Humanoid 348, ...), so `-v4` names are accepted as aliases
-of the `-v5` task. Meta-World tasks use metaworld 3.x's `-v3` ids; the paper's bare names and
-`-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1` (alias `IB-p-<p>`);
+Naming: MuJoCo tasks use gymnasium's `-v5` ids. The paper's tables and the published dataset say
+`-v4`, but the dimensions they hold are the v5 ones (Ant 105, Humanoid 348, ...), so `-v4` names are
+accepted as aliases of the `-v5` task (Pusher too, although gymnasium's own Pusher-v4 does not load
+on mujoco 3: the alias makes the v5 env). Meta-World tasks use metaworld 3.x's `-v3` ids; the
+paper's bare names and `-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1` (alias `IB-p-<p>`);
 Bi-DexHands uses the dataset's `Hand-*` names (alias: the score table's `shadowhand*`).
 """
 
@@ -29,13 +30,6 @@ PAPER_PROVENANCE = (
     "paper: Vintix (ICML 2025) appendix 'Task-Level Performance'; MuJoCo -v4 names with v5 dims, "
     "Meta-World v2 with 100-step episodes, Industrial Benchmark classic reward / 100 over 250 steps"
 )
-
-# Names users may reasonably try that cannot work here, with the reason and the fix.
-_UNAVAILABLE = {
-    "Pusher-v4": "gymnasium's Pusher-v4 only loads on mujoco<3, and metaworld 3.1.1 pins mujoco "
-    "3.3.0; the paper itself used Pusher-v5. Use 'Pusher-v5'.",
-}
-
 
 @dataclass(frozen=True)
 class ReferenceScore:
@@ -117,8 +111,6 @@ def get_task(name: str) -> TaskSpec:
     lookup = _names_and_aliases()
     if name in lookup:
         return _tasks()[lookup[name]]
-    if name in _UNAVAILABLE:
-        raise UnknownTaskError(f"task {name!r} is not available: {_UNAVAILABLE[name]}")
     close = difflib.get_close_matches(name, list(lookup), n=5, cutoff=0.6)
     hint = f" Did you mean: {', '.join(close)}?" if close else ""
     raise UnknownTaskError(f"unknown task {name!r}.{hint} Run `vintix tasks` to list all {len(_tasks())} tasks.")

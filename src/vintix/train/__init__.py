@@ -9,11 +9,21 @@ from vintix.train.data import (
     collate_windows,
     load_training_data,
 )
-from vintix.train.trainer import Callback, Scorer, Trainer, WindowLoss, build_optimizer, learning_rate, train
+from vintix.train.trainer import (
+    Callback,
+    NonFiniteLossError,
+    Scorer,
+    Trainer,
+    WindowLoss,
+    build_optimizer,
+    learning_rate,
+    train,
+)
 
 __all__ = [
     "Callback",
     "ConfigError",
+    "NonFiniteLossError",
     "Scorer",
     "TrainConfig",
     "Trainer",

@@ -24,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = load_config(args.config, {"data": args.data, "out": args.out}, args.settings)
         train(config, scorer=in_context_scorer(config))
-    except VintixError as error:
+    except (VintixError, OSError) as error:  # like `vintix train`: a named error, not a traceback
         print(f"error: {error}", file=sys.stderr)
         return 2
     return 0

@@ -5,7 +5,9 @@
 ``<parameter name>/<state key>``: tensors are never pickled), ``rng.safetensors`` (every rank's
 torch RNG state) and ``trainer.json`` (step, tokens seen, optimizer hyperparameters, the config).
 The directory is assembled under ``step-N.partial`` and renamed when complete, so a checkpoint
-directory without ``.partial`` is always whole.
+directory without ``.partial`` is always whole when written; a file damaged later (a full disk, a
+copy cut short) is caught on resume, which goes on from the newest checkpoint whose files all read
+(`resumable_checkpoint`).
 
 ``<out>/checkpoints/best/`` (a model checkpoint only) holds the model with the best in-context score
 so far when training selects checkpoints (``select_every``); its ``model.json`` ``extra`` says the
@@ -19,6 +21,7 @@ import json
 import os
 import re
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +29,14 @@ import torch
 from safetensors.torch import load_file, save_file
 
 from vintix.atomic import PARTIAL_SUFFIX, atomic_path, atomic_write_text
-from vintix.model.checkpoint import CONFIG_FILE, WEIGHTS_FILE, CheckpointError, read_metadata, save_pretrained
+from vintix.model.checkpoint import (
+    CONFIG_FILE,
+    WEIGHTS_FILE,
+    CheckpointError,
+    load_pretrained,
+    read_metadata,
+    save_pretrained,
+)
 from vintix.model.model import GroupSpec, ModelConfig, Vintix
 
 CHECKPOINTS = "checkpoints"
@@ -55,6 +65,88 @@ def latest_checkpoint(out: str | os.PathLike[str]) -> Path | None:
     """The newest complete checkpoint of a run, if any."""
     found = list_checkpoints(out)
     return found[-1] if found else None
+
+
+def _state_problem(directory: Path) -> str | None:
+    """What is wrong with a checkpoint's ``trainer.json`` (None: it has what resuming reads)."""
+    try:
+        state = json.loads((directory / STATE_FILE).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        return f"{STATE_FILE} is not readable JSON ({error})"
+    counts = ("step", "tokens", "world_size")
+    if not isinstance(state, dict) or not all(type(state.get(key)) is int and state[key] >= 0 for key in counts):
+        return f"{STATE_FILE} lacks the non-negative integers {list(counts)}"
+    if state["step"] != int(directory.name.split("-")[1]):
+        return f"{STATE_FILE} says step {state['step']}, its folder step {int(directory.name.split('-')[1])}"
+    groups = state.get("optimizer_param_groups")
+    if not (isinstance(groups, list) and groups and all(isinstance(g, dict) and isinstance(g.get("params"), list)
+                                                         and isinstance(g.get("betas"), list) and len(g["betas"]) == 2
+                                                         for g in groups)):
+        return f"{STATE_FILE} lacks the optimizer's parameter groups"
+    return None
+
+
+def checkpoint_problem(directory: Path) -> str | None:
+    """Why resuming from a training checkpoint would fail (None: every file reads and fits).
+
+    Reads every file whole, as resuming does: a truncated ``.safetensors`` or garbage JSON shows.
+    """
+    try:
+        load_pretrained(directory)  # model.json + weights: readable, fitting, finite
+    except CheckpointError as error:
+        return str(error)
+    for name in (OPTIMIZER_FILE, RNG_FILE):
+        try:
+            load_file(str(directory / name))
+        except Exception as error:  # safetensors raises its own SafetensorError (and OSError when missing)
+            return f"{directory / name}: unreadable ({error})"
+    problem = _state_problem(directory)
+    return None if problem is None else f"{directory / STATE_FILE}: {problem}"
+
+
+def resumable_checkpoint(out: str | os.PathLike[str], note: Callable[[str], object] | None = print) -> Path | None:
+    """The checkpoint a run resumes from: the newest one whose files all read (`checkpoint_problem`).
+
+    Newer damaged checkpoints are passed over with a `note` saying so: training repeats their steps
+    (exactly, as resume is deterministic) and `prune_checkpoints` deletes them once it is past them,
+    as they are no longer the run's. None when the run has no checkpoint; CheckpointError naming the
+    folder to delete when it has checkpoints but not one intact (starting over silently could cost
+    days of training that a repaired file would save).
+    """
+    damaged: list[tuple[Path, str]] = []
+    for directory in reversed(list_checkpoints(out)):
+        problem = checkpoint_problem(directory)
+        if problem is None:
+            for bad, why in damaged:
+                if note is not None:
+                    note(f"note: checkpoint {bad} is damaged ({why}); resuming from {directory}, the newest intact "
+                         "one: its later steps are trained again and the damaged folder is replaced")
+            return directory
+        damaged.append((directory, problem))
+    if damaged:
+        raise CheckpointError(
+            f"no intact checkpoint to resume from in {Path(out) / CHECKPOINTS}: "
+            + "; ".join(f"{bad.name}: {why}" for bad, why in damaged)
+            + f". Delete {Path(out) / CHECKPOINTS} to train this run from scratch, or train into a new --out"
+        )
+    return None
+
+
+def intact_alternative_hint(directory: Path) -> str:
+    """For an error about a model in a training run: which of the run's other checkpoints load, and
+    what to delete so that the run folder means one of them (empty when `directory` is no run's)."""
+    if directory.parent.name != CHECKPOINTS:
+        return ""
+    run = directory.parent.parent
+    for other in reversed(list_checkpoints(run)):
+        if other != directory:
+            try:
+                load_pretrained(other)
+            except CheckpointError:
+                continue
+            return (f". The run's newest intact checkpoint is {other}: pass it with --checkpoint, or delete the damaged "
+                    f"{directory} so that {run} means it")
+    return f". The run {run} has no other intact checkpoint: re-train, or restore {directory} from a backup"
 
 
 def best_checkpoint_dir(out: str | os.PathLike[str]) -> Path:
@@ -114,7 +206,8 @@ def load_optimizer(optimizer: torch.optim.Optimizer, names: list[str], directory
     tensors = load_file(str(directory / OPTIMIZER_FILE))
     groups = json.loads((directory / STATE_FILE).read_text())["optimizer_param_groups"]
     index = {name: i for i, name in enumerate(names)}
-    missing = sorted({n for g in groups for n in g["params"]} ^ set(names))
+    in_groups, in_tensors = {n for g in groups for n in g["params"]}, {k.rsplit("/", 1)[0] for k in tensors}
+    missing = sorted((in_groups ^ set(names)) | (in_tensors - set(names)))
     if missing:
         raise CheckpointError(f"{directory}: optimizer state does not match the model's parameters ({missing[:5]})")
     state: dict[int, dict[str, torch.Tensor]] = {}
@@ -178,9 +271,16 @@ def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec
         )
 
 
-def prune_checkpoints(out: str | os.PathLike[str], keep: int) -> None:
-    """Delete all but the ``keep`` newest checkpoints, and leftovers of interrupted saves."""
-    for old in list_checkpoints(out)[:-keep]:
+def prune_checkpoints(out: str | os.PathLike[str], keep: int, step: int | None = None) -> None:
+    """Delete all but the ``keep`` newest checkpoints, and leftovers of interrupted saves. With the
+    run's current ``step``, checkpoints past it go too: they are damaged ones that resume passed over
+    (`resumable_checkpoint`), and left there they would count as the newest and push good ones out."""
+    found = list_checkpoints(out)
+    if step is not None:
+        for stale in [c for c in found if int(c.name.split("-")[1]) > step]:
+            shutil.rmtree(stale)
+            found.remove(stale)
+    for old in found[:-keep]:
         shutil.rmtree(old)
     for partial in (Path(out) / CHECKPOINTS).glob(f"step-*{PARTIAL_SUFFIX}"):
         shutil.rmtree(partial, ignore_errors=True)

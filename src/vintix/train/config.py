@@ -14,6 +14,7 @@ from typing import Any
 import yaml
 
 from vintix.errors import VintixError
+from vintix.fields import check_field_types
 from vintix.model.model import PRESETS, ModelConfig, preset
 
 
@@ -101,15 +102,32 @@ class TrainConfig:
     """where normalization statistics are cached (default: ~/.cache/vintix/norm-stats)"""
 
     def __post_init__(self) -> None:
+        # Values from YAML and --set arrive untyped: "abc" must not reach a comparison as max_steps.
+        check_field_types(self, ConfigError)
         if self.model not in PRESETS:
             raise ConfigError(f"model preset {self.model!r} is unknown; choose one of {sorted(PRESETS)}")
         positive = {"batch_size": self.batch_size, "grad_accum": self.grad_accum, "max_steps": self.max_steps,
                     "episode_sparsity": self.episode_sparsity, "checkpoint_every": self.checkpoint_every,
                     "keep_checkpoints": self.keep_checkpoints, "log_every": self.log_every,
-                    "select_shots": self.select_shots, "select_seeds": self.select_seeds}
+                    "select_shots": self.select_shots, "select_seeds": self.select_seeds,
+                    "window_len": 1 if self.window_len is None else self.window_len}
         bad = [f"{k}={v}" for k, v in positive.items() if v < 1]
         if bad:
             raise ConfigError(f"these fields must be >= 1: {', '.join(bad)}")
+        non_negative = {"warmup_steps": self.warmup_steps, "weight_decay": self.weight_decay,
+                        "grad_clip": self.grad_clip, "num_workers": self.num_workers, "seed": self.seed,
+                        "select_first_seed": self.select_first_seed}
+        bad = [f"{k}={v}" for k, v in non_negative.items() if v < 0]
+        if bad:
+            raise ConfigError(f"these fields must be >= 0: {', '.join(bad)}")
+        ranges = {"lr": (self.lr, 0 < self.lr), "min_lr_fraction": (self.min_lr_fraction, 0 <= self.min_lr_fraction <= 1),
+                  "beta1": (self.beta1, 0 <= self.beta1 < 1), "beta2": (self.beta2, 0 <= self.beta2 < 1),
+                  "expert_tail_fraction": (self.expert_tail_fraction,
+                                           self.expert_tail_fraction is None or 0 < self.expert_tail_fraction <= 1)}
+        bad = [f"{k}={v}" for k, (v, ok) in ranges.items() if not ok]
+        if bad:
+            raise ConfigError(f"out of range: {', '.join(bad)} (lr > 0; min_lr_fraction in [0, 1]; betas in [0, 1); "
+                              "expert_tail_fraction in (0, 1])")
         if self.task_sampling not in ("uniform", "volume"):
             raise ConfigError(f"task_sampling must be 'uniform' or 'volume', got {self.task_sampling!r}")
         if self.select_every < 0 or self.select_every % self.log_every:
@@ -119,9 +137,10 @@ class TrainConfig:
             raise ConfigError(f"select_reference must be 'ours' or 'paper', got {self.select_reference!r}")
         if self.device not in ("auto", "cpu", "cuda"):
             raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
-        if self.window_len is not None and self.window_len > self.model_config().context_len:
+        context_len = self.model_config().context_len  # also checks model_overrides
+        if self.window_len is not None and self.window_len > context_len:
             raise ConfigError(
-                f"window_len {self.window_len} exceeds the model's context_len {self.model_config().context_len}; "
+                f"window_len {self.window_len} exceeds the model's context_len {context_len}; "
                 "lower window_len or raise model_overrides.context_len"
             )
 
@@ -131,7 +150,10 @@ class TrainConfig:
         unknown = sorted(set(self.model_overrides) - known)
         if unknown:
             raise ConfigError(f"model_overrides has unknown ModelConfig fields {unknown}; known: {sorted(known)}")
-        return preset(self.model, **self.model_overrides)
+        try:
+            return preset(self.model, **self.model_overrides)
+        except ValueError as error:
+            raise ConfigError(f"model_overrides: {error}") from error
 
     @property
     def window(self) -> int:
@@ -167,4 +189,10 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
     unknown = sorted(set(fields) - known)
     if unknown:
         raise ConfigError(f"unknown TrainConfig fields {unknown}; known: {sorted(known)}")
-    return TrainConfig(**fields)
+    try:
+        return TrainConfig(**fields)
+    except ConfigError as error:
+        if not settings:
+            raise
+        raise ConfigError(f"{error} (--set values are read as YAML: --set max_steps=500, "
+                          "--set 'tasks=[reach-v3, push-v3]', --set model_overrides={mask_reward: true})") from error

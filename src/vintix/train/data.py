@@ -8,7 +8,10 @@ state of its own: a resumed run asks for the same indices and gets the same wind
 
 Per-task observation statistics are computed once by streaming over the HDF5 step groups (memory
 stays at one group of rows) and cached under the dataset's fingerprint (file names, sizes, mtimes),
-so a changed history invalidates them.
+so a changed history invalidates them. Before a task's statistics are first computed, its histories
+pass the same checks as ``vintix data validate`` (finite values, step numbers, dtypes, dims, block
+checksums): training never accepts a file that validation rejects, and one NaN can no longer turn a
+task's observation mean, then the whole model, into NaN.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import torch
 
 from vintix.atomic import atomic_write_text
 from vintix.data.hdf5 import LearningHistory, TaskData, find_tasks
+from vintix.data.validate import validate_history
 from vintix.errors import DatasetError, UnknownTaskError, VintixError
 from vintix.model.model import GroupSpec, TaskNorm
 from vintix.tasks import TaskSpec, get_task, resolve_tasks
@@ -80,20 +84,48 @@ def streaming_obs_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarra
     return mean, np.sqrt(m2 / count), count
 
 
+def check_histories(task: TaskData) -> None:
+    """Refuse a task any of whose histories `vintix data validate` would flag (one full read)."""
+    problems = [f"{path.name}: {message}" for path in task.history_paths
+                for message in validate_history(path, (task.obs_dim, task.act_dim))]
+    if problems:
+        shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
+        raise TrainingDataError(
+            f"{task.task_dir}: cannot train on task {task.task_name!r}: {shown}. Run `vintix data validate "
+            f"{task.task_dir.parent.parent}` for every problem, then re-collect or remove the damaged files"
+        )
+
+
+def _finite(values: object) -> bool:
+    return bool(np.isfinite(np.asarray(values, dtype=np.float64)).all())
+
+
 def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache_dir: Path) -> tuple[list[float], list[float]]:
-    """`streaming_obs_stats` of a task, read from / written to a per-task cache file keyed by fingerprint."""
+    """`streaming_obs_stats` of a task, read from / written to a per-task cache file keyed by fingerprint.
+
+    A cache miss first validates the task's histories (`check_histories`); an entry is written only
+    for histories that passed, and one without the ``validated`` mark (older vintix) or with
+    non-finite statistics is recomputed, never trusted.
+    """
     key = hashlib.sha1(str(task.task_dir.resolve()).encode()).hexdigest()[:16]
     path = cache_dir / f"{task.task_name}-{key}.json"
     fingerprint = task_fingerprint(task.history_paths)
     if path.is_file():
         try:
             cached = json.loads(path.read_text())
-            if cached.get("fingerprint") == fingerprint:
+            if (cached.get("fingerprint") == fingerprint and cached.get("validated") is True
+                    and _finite(cached["obs_mean"]) and _finite(cached["obs_std"])):
                 return cached["obs_mean"], cached["obs_std"]
-        except (json.JSONDecodeError, KeyError):
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
             pass  # a damaged cache entry is recomputed, never trusted
+    check_histories(task)
     mean, std, rows = streaming_obs_stats(histories)
-    entry = {"task_dir": str(task.task_dir.resolve()), "fingerprint": fingerprint, "rows": rows,
+    if not (_finite(mean) and _finite(std)):  # validated rows are finite; this guards against overflow
+        raise TrainingDataError(
+            f"{task.task_dir}: the observation statistics of task {task.task_name!r} are not finite (mean {mean}, "
+            f"std {std}): observations too large for float64 sums; check the data with `vintix data validate`"
+        )
+    entry = {"task_dir": str(task.task_dir.resolve()), "fingerprint": fingerprint, "rows": rows, "validated": True,
              "obs_mean": mean.tolist(), "obs_std": std.tolist()}
     atomic_write_text(path, json.dumps(entry) + "\n")
     return entry["obs_mean"], entry["obs_std"]
@@ -210,19 +242,10 @@ def _tail_fraction(task: TaskData, expert_distillation: bool, expert_tail_fracti
     return float(fraction)
 
 
-def _check_group_dims(found: list[tuple[TaskData, str]]) -> list[GroupSpec]:
-    """One GroupSpec per group, refusing a group whose tasks disagree on dims."""
-    dims: dict[str, dict[tuple[int, int], list[str]]] = {}
-    for task, group in found:
-        dims.setdefault(group, {}).setdefault((task.obs_dim, task.act_dim), []).append(task.task_name)
-    for group, by_dims in dims.items():
-        if len(by_dims) > 1:
-            listing = "; ".join(f"(obs {o}, act {a}): {', '.join(names)}" for (o, a), names in sorted(by_dims.items()))
-            raise TrainingDataError(
-                f"group {group!r} mixes observation/action sizes: {listing}. Tasks of a group share encoders and a "
-                "head, so they must agree; fix the task JSONs/histories or the registry's group"
-            )
-    return [GroupSpec(group, *next(iter(by_dims))) for group, by_dims in sorted(dims.items())]
+def _registry_groups(specs: Sequence[TaskSpec]) -> list[GroupSpec]:
+    """One GroupSpec per group, with the registry's dims (each task's data was checked against them)."""
+    return [GroupSpec(spec.group, spec.obs_dim, spec.act_dim)
+            for spec in sorted({s.group: s for s in specs}.values(), key=lambda s: s.group)]
 
 
 def _histories(task: TaskData) -> list[LearningHistory]:
@@ -261,7 +284,7 @@ def load_training_data(
                                 "collect data first (`vintix collect`) or check --data and the `tasks` setting")
     trained_groups = {spec.group for _, spec in specs}
     held_out = [(task, spec) for task, spec in found if (task, spec) not in specs and spec.group in trained_groups]
-    groups = _check_group_dims([(task, spec.group) for task, spec in specs + held_out])
+    groups = _registry_groups([spec for _, spec in specs + held_out])
     cache_dir = Path(stats_cache_dir) if stats_cache_dir is not None else default_stats_cache_dir()
     windows = []
     for task, spec in specs:
@@ -283,6 +306,8 @@ def _task_norm(task: TaskData, spec: TaskSpec, histories: Sequence[LearningHisto
 
 
 def _registry_spec(task: TaskData) -> TaskSpec:
+    """The registry's task for a dataset folder, which must hold data of the registry's dims: a group's
+    tasks share encoders and a head, so a folder of another env version would train a wrong group."""
     try:
         spec = get_task(task.task_name)
     except UnknownTaskError as error:
@@ -290,6 +315,13 @@ def _registry_spec(task: TaskData) -> TaskSpec:
             f"{task.task_dir}: task {task.task_name!r} is not in the task registry, so its group and reward scale are "
             f"unknown ({error}); rename task_name in its JSON to a registry name or leave the folder out"
         ) from error
+    if (task.obs_dim, task.act_dim) != (spec.obs_dim, spec.act_dim):
+        raise TrainingDataError(
+            f"{task.task_dir}: task {task.task_name!r} declares (obs_dim, act_dim) = ({task.obs_dim}, {task.act_dim}) "
+            f"but the task registry's {spec.name} (group {spec.group!r}) has ({spec.obs_dim}, {spec.act_dim}); the "
+            "folder holds another env version's or another task's data (MuJoCo -v4 and -v5 dims differ). Fix its "
+            "JSON and histories or leave the folder out; `vintix data validate` flags it too"
+        )
     return spec
 
 

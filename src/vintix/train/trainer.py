@@ -26,6 +26,7 @@ from torch import nn
 from tqdm import tqdm
 
 from vintix.atomic import atomic_write_text
+from vintix.errors import DeviceError, VintixError
 from vintix.model.checkpoint import load_pretrained
 from vintix.model.model import Vintix, count_parameters
 from vintix.train.checkpoint import (
@@ -38,6 +39,7 @@ from vintix.train.checkpoint import (
     prune_checkpoints,
     read_rng,
     read_training_state,
+    resumable_checkpoint,
     save_best_checkpoint,
     save_training_checkpoint,
 )
@@ -50,6 +52,11 @@ Scorer = Callable[[Vintix, Sequence[str]], float]
 """``scorer(model, tasks)``: the model's cold-start in-context score on ``tasks`` (higher is better),
 which chooses the best checkpoint; `vintix.evaluate.in_context_scorer` makes one from a TrainConfig.
 It lives above training (it runs envs and the agent), so the trainer takes it as an argument."""
+
+
+class NonFiniteLossError(VintixError, RuntimeError):
+    """Training met a NaN/inf loss or gradient and stopped before it reached the weights (the message
+    names the step and the last good checkpoint)."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -171,7 +178,7 @@ def resolve_device(name: str, local_rank: int) -> torch.device:
     """'auto' picks CUDA when available; a torchrun rank takes its LOCAL_RANK's GPU."""
     use_cuda = name == "cuda" or (name == "auto" and torch.cuda.is_available())
     if use_cuda and not torch.cuda.is_available():
-        raise RuntimeError("device 'cuda' requested but torch sees no GPU; use device=cpu or auto")
+        raise DeviceError("device 'cuda' requested but torch sees no GPU; use device=cpu or auto")
     return torch.device("cuda", local_rank) if use_cuda else torch.device("cpu")
 
 
@@ -259,7 +266,7 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.model = Vintix(config.model_config(), self.data.groups, self.data.task_norms)
         self.step, self.tokens = 0, 0
-        resume = latest_checkpoint(self.out)
+        resume = resumable_checkpoint(self.out, note=print if self.dist.is_main else None)
         if resume is not None:
             check_resumable(resume, self.model.config, self.data.groups, [n.task for n in self.data.task_norms])
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
@@ -332,6 +339,9 @@ class Trainer:
         """
         rng = self._gathered_rng()
         checksums = self._replica_checksums()
+        if not all(math.isfinite(x) for c in checksums for x in c):  # every rank sees the same gathered sums
+            raise NonFiniteLossError(f"step {self.step}: the model's parameters hold NaN/inf, so no checkpoint was "
+                                     f"written; {self._last_good()}")
         if any(c != checksums[0] for c in checksums):
             raise RuntimeError(f"DDP replicas diverged at step {self.step}: parameter checksums {checksums}")
         directory = checkpoint_dir(self.out, self.step)
@@ -340,9 +350,16 @@ class Trainer:
                      "replica_checksums": checksums, "train_config": dataclasses.asdict(self.config)}
             save_training_checkpoint(directory, self.model, self.optimizer, self.param_names, rng, state,
                                      self._model_extra())
-            prune_checkpoints(self.out, self.config.keep_checkpoints)
+            prune_checkpoints(self.out, self.config.keep_checkpoints, self.step)
         self.dist.barrier()
         return directory
+
+    def _last_good(self) -> str:
+        """Where the run can go on from, for the errors that stop it."""
+        last = latest_checkpoint(self.out)
+        where = f"the last good checkpoint is {last}" if last is not None else "no checkpoint was written yet"
+        return (f"{where}. Re-running the same command repeats the same steps, so first lower lr (now "
+                f"{self.config.lr:g}), e.g. --set lr={self.config.lr / 3:.2g}, or lengthen warmup_steps")
 
     def _model_extra(self) -> dict[str, object]:
         """What a saved model records about its training."""
@@ -411,6 +428,15 @@ class Trainer:
                     row[2] += n * self.window_len * self.flops[group]
                     start += n
             grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
+            # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.
+            if not torch.isfinite(grad_norm):
+                progress.close()
+                if log is not None:
+                    log.close()
+                raise NonFiniteLossError(
+                    f"step {self.step + 1}: the loss or its gradient is not finite (last micro-batch loss "
+                    f"{float(losses.detach().mean()):.4g}, gradient norm {float(grad_norm):.4g}); training stopped "
+                    f"before the optimizer step, so no NaN reached the weights; {self._last_good()}")
             self.optimizer.step()
             self.optimizer.zero_grad(set_to_none=True)
             self.step += 1

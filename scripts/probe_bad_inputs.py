@@ -1,0 +1,1107 @@
+"""Probe vintix as a careless or hostile user would: bad CLI arguments, damaged datasets and
+checkpoints, bad agent inputs, interrupted runs. Not a test: a report of how each bad input ends.
+
+    python scripts/probe_bad_inputs.py            # every case, a table, then the counts
+    python scripts/probe_bad_inputs.py --only eval --verbose
+
+Each case says what it expects:
+
+- an error: the outcome is *clear* when the CLI exits non-zero with a message (no traceback) or the
+  Python API raises a `VintixError`, and the message contains the case's key phrase (the thing named);
+  *confusing* when it errs without naming it; *traceback* when an unexpected exception escapes;
+  *silent* when it exits 0 / returns normally.
+- documented behaviour: the outcome is *documented* when the case's check of that behaviour holds,
+  *silent* when it does not (an undocumented outcome), *traceback* when an exception escapes.
+
+Everything runs in a temporary folder (with its own ~/.cache) on one CPU thread, in a few minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+import traceback
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+WORK = Path(tempfile.mkdtemp(prefix="vintix-probe-"))
+os.environ["XDG_CACHE_HOME"] = str(WORK / "user-cache")  # never touch the user's caches
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import h5py  # noqa: E402
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from typer.testing import CliRunner  # noqa: E402
+
+torch.set_num_threads(1)
+
+from vintix.cli import app  # noqa: E402
+from vintix.errors import VintixError  # noqa: E402
+
+# A model small enough to train a few steps in a second.
+TINY = "{n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, head_layers: 1, context_len: 64}"
+QUICK_TRAIN = ["--set", f"model_overrides={TINY}", "--set", "max_steps=2", "--set", "batch_size=2",
+               "--set", "warmup_steps=1", "--set", "log_every=1", "--set", "checkpoint_every=1",
+               "--set", "tensorboard=false"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Outcomes
+
+
+@dataclass
+class Outcome:
+    category: str  # clear, confusing, traceback, silent, documented
+    detail: str
+
+
+@dataclass
+class Case:
+    area: str
+    name: str
+    expect: str  # "error" or "documented"
+    run: Callable[[], Outcome]
+
+
+CASES: list[Case] = []
+
+
+def one_line(text: str, width: int = 110) -> str:
+    text = " ".join(str(text).split())
+    return text if len(text) <= width else text[: width - 1] + "…"
+
+
+def cli_error(area: str, name: str, args: list[str] | Callable[[], list[str]], needle: str,
+              setup: Callable[[], object] | None = None, after: Callable[[], str | None] | None = None) -> None:
+    """A CLI call that must end in a clear error whose message contains `needle` (case-insensitive).
+    `after` may return a complaint (e.g. a file that should not have been written)."""
+
+    def run() -> Outcome:
+        if setup is not None:
+            setup()
+        argv = args() if callable(args) else args
+        result = CliRunner().invoke(app, [str(a) for a in argv])
+        output = " ".join(result.output.split())
+        if result.exception is not None and not isinstance(result.exception, SystemExit):
+            kind = type(result.exception).__name__
+            return Outcome("traceback", f"{kind}: {one_line(result.exception)}")
+        if result.exit_code == 0:
+            return Outcome("silent", f"exit 0: {one_line(output[-200:])}")
+        if "Traceback" in output:
+            return Outcome("traceback", one_line(output))
+        complaint = after() if after is not None else None
+        if complaint:
+            return Outcome("silent", complaint)
+        if needle.lower() not in output.lower():
+            return Outcome("confusing", f"exit {result.exit_code}, lacks {needle!r}: {one_line(output)}")
+        return Outcome("clear", f"exit {result.exit_code}: {one_line(output)}")
+
+    CASES.append(Case(area, name, "error", run))
+
+
+def api_error(area: str, name: str, call: Callable[[], object], needle: str) -> None:
+    """A Python API call that must raise a VintixError naming `needle`."""
+
+    def run() -> Outcome:
+        try:
+            value = call()
+        except VintixError as error:
+            if needle.lower() not in " ".join(str(error).split()).lower():
+                return Outcome("confusing", f"{type(error).__name__} lacks {needle!r}: {one_line(error)}")
+            return Outcome("clear", f"{type(error).__name__}: {one_line(error)}")
+        except Exception as error:  # noqa: BLE001 - classifying is the point
+            return Outcome("traceback", f"{type(error).__name__}: {one_line(error)}")
+        return Outcome("silent", f"returned {one_line(repr(value))}")
+
+    CASES.append(Case(area, name, "error", run))
+
+
+def documented(area: str, name: str, check: Callable[[], str | None]) -> None:
+    """Documented behaviour: `check` returns None when it holds, else what happened instead."""
+
+    def run() -> Outcome:
+        try:
+            problem = check()
+        except VintixError as error:
+            return Outcome("silent", f"unexpected {type(error).__name__}: {one_line(error)}")
+        except Exception as error:  # noqa: BLE001
+            return Outcome("traceback", f"{type(error).__name__}: {one_line(error)}\n"
+                           + textwrap.indent(traceback.format_exc(limit=-3), "    "))
+        return Outcome("documented", "as documented") if problem is None else Outcome("silent", problem)
+
+    CASES.append(Case(area, name, "documented", run))
+
+
+def invoke(*argv: object) -> tuple[int, str]:
+    result = CliRunner().invoke(app, [str(a) for a in argv])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, " ".join(result.output.split())
+
+
+# ---------------------------------------------------------------------------------------------
+# Fixtures: small real datasets, runs and checkpoints, and damaged copies of them
+
+
+def once(make: Callable[[], Path]) -> Callable[[], Path]:
+    cache: list[Path] = []
+
+    def get() -> Path:
+        if not cache:
+            cache.append(make())
+        return cache[0]
+
+    return get
+
+
+def write_dataset(root: Path, task: str = "reach-v3", histories: int = 2, steps: int = 300, obs_dim: int | None = None,
+                  act_dim: int | None = None, domain: str | None = None, seed: int = 0) -> Path:
+    """Synthetic histories of a registry task (100-step episodes), written by the package's writer."""
+    from vintix.data import LearningHistoryWriter, task_directory, write_task_metadata
+    from vintix.tasks import get_task
+
+    spec = get_task(task)
+    obs_dim, act_dim = obs_dim or spec.obs_dim, act_dim or spec.act_dim
+    folder = task_directory(root, domain or spec.domain, task)
+    write_task_metadata(folder, task, obs_dim, act_dim, noise_free_fraction=0.1)
+    rng = np.random.default_rng(seed)
+    for i in range(histories):
+        with LearningHistoryWriter(folder / f"history-{i:04d}.h5", obs_dim, act_dim, chunk_size=128) as writer:
+            writer.append(rng.normal(size=(steps, obs_dim)), rng.uniform(-1, 1, size=(steps, act_dim)),
+                          rng.normal(size=steps), np.arange(steps) % 100)
+    return root
+
+
+@once
+def clean_data() -> Path:
+    return write_dataset(WORK / "data-clean")
+
+
+def damaged_data(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
+    """A copy of the clean dataset with one damage applied to its first reach-v3 history."""
+
+    @once
+    def make() -> Path:
+        root = WORK / f"data-{name}"
+        shutil.copytree(clean_data(), root)
+        damage(root / "metaworld" / "reach-v3")
+        return root
+
+    return make
+
+
+def set_value(key: str, row: int, value: float) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        with h5py.File(folder / "history-0000.h5", "r+") as f:
+            data = f["0-127"][key][()]
+            data[row] = value
+            f["0-127"][key][...] = data
+
+    return damage
+
+
+def truncate_file(path: Path, keep: float = 0.5) -> None:
+    path.write_bytes(path.read_bytes()[: int(path.stat().st_size * keep)])
+
+
+def flip_data_byte(folder: Path) -> None:
+    path = folder / "history-0000.h5"
+    with h5py.File(path) as f:
+        chunk = f["0-127/reward"].id.get_chunk_info(0)
+    data = bytearray(path.read_bytes())
+    data[chunk.byte_offset + chunk.size // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def break_step_num(folder: Path) -> None:
+    with h5py.File(folder / "history-0000.h5", "r+") as f:
+        f["0-127/step_num"][50] = 77
+
+
+DATA = {
+    "nan-reward": damaged_data("nan-reward", set_value("reward", 30, np.nan)),
+    "inf-obs": damaged_data("inf-obs", set_value("proprio_observation", 40, np.inf)),
+    "nan-action": damaged_data("nan-action", set_value("action", 41, np.nan)),
+    "truncated": damaged_data("truncated", lambda f: truncate_file(f / "history-0000.h5", 0.6)),
+    "corrupted-block": damaged_data("corrupted-block", flip_data_byte),
+    "step-break": damaged_data("step-break", break_step_num),
+    "garbage-json": damaged_data("garbage-json", lambda f: (f / "reach-v3.json").write_text("{not json")),
+    "missing-json": damaged_data("missing-json", lambda f: (f / "reach-v3.json").unlink()),
+    "partial-leftover": damaged_data("partial-leftover", lambda f: (f / "history-0009.h5.partial").write_bytes(b"x")),
+    "empty-h5": damaged_data("empty-h5", lambda f: (f / "history-0005.h5").write_bytes(b"")),
+    "foreign-entry": damaged_data("foreign-entry", lambda f: h5py.File(f / "history-0001.h5", "r+").close()
+                                  or _add_entry(f / "history-0001.h5")),
+}
+
+
+def _add_entry(path: Path) -> None:
+    with h5py.File(path, "r+") as f:
+        f.create_dataset("notes", data=np.zeros(3))
+
+
+def rewrite_json(change: Callable[[dict], object]) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        meta = json.loads((folder / "reach-v3.json").read_text())
+        change(meta)
+        (folder / "reach-v3.json").write_text(json.dumps(meta))
+
+    return damage
+
+
+def float64_history(folder: Path) -> None:
+    """A history whose reward was stored as float64 (what a hand-rolled writer does)."""
+    with h5py.File(folder / "history-0001.h5", "r+") as f:
+        reward = f["0-127/reward"][()]
+        del f["0-127/reward"]
+        f["0-127"].create_dataset("reward", data=reward.astype(np.float64))
+
+
+def unchecksummed_copy(folder: Path) -> None:
+    """Rewrite a history the way the published dataset stores it: no chunks, no checksums."""
+    path = folder / "history-0000.h5"
+    with h5py.File(path) as f:
+        groups = {g: {k: f[g][k][()] for k in f[g]} for g in f}
+    path.unlink()
+    with h5py.File(path, "w") as f:
+        for name, datasets in groups.items():
+            for key, data in datasets.items():
+                f.create_group(name) if name not in f else None
+                f[name].create_dataset(key, data=data)
+
+
+DATA.update({
+    "discrete-json": damaged_data("discrete-json", rewrite_json(lambda m: m.update(action_type="discrete"))),
+    "text-dims-json": damaged_data("text-dims-json", rewrite_json(lambda m: m.update(action_dim="4"))),
+    "json-list": damaged_data("json-list", lambda f: (f / "reach-v3.json").write_text("[1, 2]")),
+    "json-not-utf8": damaged_data("json-not-utf8", lambda f: (f / "reach-v3.json").write_bytes(b"\xff\xfe{")),
+    "float64-reward": damaged_data("float64-reward", float64_history),
+    "not-hdf5": damaged_data("not-hdf5", lambda f: (f / "history-0001.h5").write_text("just text")),
+    "published-layout": damaged_data("published-layout", unchecksummed_copy),
+    "json-only-task": damaged_data("json-only-task", lambda f: (f.parent / "push-v3").mkdir()
+                                   or (f.parent / "push-v3" / "push-v3.json").write_text((f / "reach-v3.json").read_text()
+                                                                                          .replace("reach-v3", "push-v3"))),
+})
+
+
+@once
+def ib7_data() -> Path:
+    return write_dataset(WORK / "data-ib7", task="industrial-benchmark-10-v1", obs_dim=7, histories=1, steps=500)
+
+
+@once
+def unknown_task_data() -> Path:
+    root = WORK / "data-unknown"
+    write_dataset(root)
+    meta_path = root / "metaworld" / "reach-v3" / "reach-v3.json"
+    meta = json.loads(meta_path.read_text())
+    meta_path.write_text(json.dumps({**meta, "task_name": "my-own-task-v1"}))
+    return root
+
+
+@once
+def no_fraction_data() -> Path:
+    root = WORK / "data-no-fraction"
+    write_dataset(root)
+    meta_path = root / "metaworld" / "reach-v3" / "reach-v3.json"
+    meta = json.loads(meta_path.read_text())
+    del meta["noise_free_fraction"]
+    meta_path.write_text(json.dumps(meta))
+    return root
+
+
+@once
+def pusher_v4_data() -> Path:
+    """A folder named and labelled like the published dataset's Pusher."""
+    root = WORK / "data-pusher-v4"
+    write_dataset(root, task="Pusher-v5", histories=1, steps=300)
+    folder = root / "mujoco" / "Pusher-v5"
+    published = root / "mujoco" / "Pusher-v4"
+    folder.rename(published)
+    (published / "Pusher-v5.json").rename(published / "Pusher-v4.json")
+    meta = json.loads((published / "Pusher-v4.json").read_text())
+    (published / "Pusher-v4.json").write_text(json.dumps({**meta, "task_name": "Pusher-v4"}))
+    return root
+
+
+@once
+def trained_run() -> Path:
+    """A real training run: checkpoints at steps 1 and 2."""
+    out = WORK / "run-clean"
+    code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN)
+    assert code == 0, output
+    return out
+
+
+def damaged_run(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
+    @once
+    def make() -> Path:
+        out = WORK / f"run-{name}"
+        shutil.copytree(trained_run(), out)
+        damage(out / "checkpoints")
+        return out
+
+    return make
+
+
+def newest(checkpoints: Path) -> Path:
+    return checkpoints / "step-00000002"
+
+
+RUNS = {
+    "truncated-optimizer": damaged_run("truncated-optimizer", lambda c: truncate_file(newest(c) / "optimizer.safetensors")),
+    "truncated-rng": damaged_run("truncated-rng", lambda c: truncate_file(newest(c) / "rng.safetensors")),
+    "garbage-trainer-json": damaged_run("garbage-trainer-json", lambda c: (newest(c) / "trainer.json").write_text("]{")),
+    "trainer-json-wrong-step": damaged_run("trainer-json-wrong-step", lambda c: (newest(c) / "trainer.json").write_text(
+        json.dumps({**json.loads((newest(c) / "trainer.json").read_text()), "step": "two"}))),
+    "truncated-weights": damaged_run("truncated-weights", lambda c: truncate_file(newest(c) / "model.safetensors")),
+    "truncated-weights-eval": damaged_run("truncated-weights-eval", lambda c: truncate_file(newest(c) / "model.safetensors")),
+    "garbage-model-json": damaged_run("garbage-model-json", lambda c: (newest(c) / "model.json").write_text("nope")),
+    "all-damaged": damaged_run("all-damaged", lambda c: [truncate_file(d / "optimizer.safetensors")
+                                                        for d in c.glob("step-*")]),
+    "partial-leftover": damaged_run("partial-leftover", lambda c: shutil.copytree(newest(c), c / "step-00000003.partial")),
+}
+
+
+@once
+def model_checkpoint() -> Path:
+    directory = WORK / "ckpt"
+    shutil.copytree(newest(trained_run() / "checkpoints"), directory)
+    for name in ("optimizer.safetensors", "rng.safetensors", "trainer.json"):
+        (directory / name).unlink()
+    return directory
+
+
+def damaged_checkpoint(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
+    @once
+    def make() -> Path:
+        directory = WORK / f"ckpt-{name}"
+        shutil.copytree(model_checkpoint(), directory)
+        damage(directory)
+        return directory
+
+    return make
+
+
+@once
+def other_model() -> Path:
+    """A model of another size over the same task."""
+    from vintix.model import load_pretrained, save_pretrained
+    from vintix.model.model import Vintix, preset
+
+    model = load_pretrained(model_checkpoint())
+    config = preset("tiny", n_layers=1, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=16,
+                    head_layers=1, context_len=64)
+    return save_pretrained(Vintix(config, list(model.groups.values()), model.task_norms), WORK / "other-model")
+
+
+def nan_weights(directory: Path) -> None:
+    from safetensors.torch import load_file, save_file
+
+    weights = load_file(str(directory / "model.safetensors"))
+    weights = {k: v.fill_(float("nan")) if v.is_floating_point() else v for k, v in weights.items()}
+    save_file(weights, str(directory / "model.safetensors"))
+
+
+CHECKPOINTS = {
+    "truncated-weights": damaged_checkpoint("truncated-weights", lambda d: truncate_file(d / "model.safetensors")),
+    "garbage-json": damaged_checkpoint("garbage-json", lambda d: (d / "model.json").write_text("{")),
+    "json-missing-keys": damaged_checkpoint("json-missing-keys", lambda d: (d / "model.json").write_text("{}")),
+    "nan-weights": damaged_checkpoint("nan-weights", nan_weights),
+    "no-weights": damaged_checkpoint("no-weights", lambda d: (d / "model.safetensors").unlink()),
+    "future-format": damaged_checkpoint("future-format", lambda d: (d / "model.json").write_text(
+        json.dumps({**json.loads((d / "model.json").read_text()), "format_version": 99}))),
+    "groups-malformed": damaged_checkpoint("groups-malformed", lambda d: (d / "model.json").write_text(
+        json.dumps({**json.loads((d / "model.json").read_text()), "groups": [{"x": 1}]}))),
+    "config-text-heads": damaged_checkpoint("config-text-heads", lambda d: (d / "model.json").write_text(json.dumps(
+        {**json.loads((d / "model.json").read_text()),
+         "config": {**json.loads((d / "model.json").read_text())["config"], "n_heads": "2"}}))),
+    "weights-of-another-model": damaged_checkpoint("weights-of-another-model", lambda d: shutil.copy(
+        other_model() / "model.safetensors", d / "model.safetensors")),
+}
+
+
+@once
+def eval_results() -> Path:
+    out = WORK / "results-clean"
+    code, output = invoke("eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "2",
+                          "--seeds", "1", "--out", out)
+    assert code == 0, output
+    return out
+
+
+@once
+def collected() -> Path:
+    out = WORK / "collected"
+    code, output = invoke("collect", "--task", "reach-v3", "--histories", "1", "--steps", "150", "--out", out)
+    assert code == 0, output
+    return out
+
+
+def file_at(name: str, text: str) -> Callable[[], Path]:
+    @once
+    def make() -> Path:
+        path = WORK / name
+        path.write_text(text)
+        return path
+
+    return make
+
+
+def empty_dir(name: str) -> Callable[[], Path]:
+    @once
+    def make() -> Path:
+        path = WORK / name
+        path.mkdir(exist_ok=True)
+        return path
+
+    return make
+
+
+def missing(name: str) -> Path:
+    return WORK / "does-not-exist" / name
+
+
+def not_written(path_of: Callable[[], Path]) -> Callable[[], str | None]:
+    return lambda: f"wrote {path_of()} although it failed" if path_of().exists() else None
+
+
+# ---------------------------------------------------------------------------------------------
+# The cases
+
+# Top-level and task registry
+cli_error("cli", "unknown command", ["frobnicate"], "No such command")
+cli_error("tasks", "unknown domain", ["tasks", "--domain", "mujuco"], "unknown domain 'mujuco'")
+cli_error("tasks", "unknown split", ["tasks", "--split", "validation"], "unknown split")
+cli_error("tasks", "unknown group", ["tasks", "--group", "nope"], "unknown group")
+cli_error("check-envs", "misspelled task", ["check-envs", "Hoper-v5"], "Did you mean")
+cli_error("check-envs", "zero episodes", ["check-envs", "InvertedPendulum-v5", "--episodes", "0"], "--episodes")
+cli_error("check-envs", "negative seed", ["check-envs", "InvertedPendulum-v5", "--seed", "-1"], "--seed")
+cli_error("check-envs", "only Bi-DexHands tasks (no simulator)", ["check-envs", "Hand-Pen"], "IsaacGym")
+cli_error("check-envs", "--out under a file", lambda: ["check-envs", "InvertedPendulum-v5", "--episodes", "1",
+                                                                         "--out", file_at("a-file", "x")() / "x.csv"],
+          "not a directory")
+
+# Collection
+cli_error("collect", "neither --task nor --recipe", lambda: ["collect", "--out", WORK / "c1"], "exactly one of --task")
+cli_error("collect", "both --task and --recipe", lambda: ["collect", "--task", "reach-v3", "--recipe", "tiny",
+                                                          "--out", WORK / "c2"], "exactly one of --task")
+cli_error("collect", "unknown task", lambda: ["collect", "--task", "reech-v3", "--out", WORK / "c3"], "Did you mean")
+cli_error("collect", "task without a demonstrator", lambda: ["collect", "--task", "Humanoid-v5", "--out", WORK / "c4"],
+          "no trained demonstrator")
+cli_error("collect", "Bi-DexHands task", lambda: ["collect", "--task", "Hand-Pen", "--out", WORK / "c5"], "Hand-Pen")
+for option, value, needle in [("--envs-per-batch", "0", "envs_per_batch=0"), ("--histories", "0", "histories=0"),
+                              ("--steps", "0", "steps=0"), ("--steps", "-5", "steps=-5"), ("--seed", "-1", "seed=-1"),
+                              ("--curvature", "0", "curvature"), ("--noise-free-fraction", "1.5", "noise_free_fraction"),
+                              ("--workers", "0", "workers")]:
+    cli_error("collect", f"{option} {value}", lambda o=option, v=value: ["collect", "--task", "reach-v3", o, v,
+                                                                         "--out", WORK / "c6"], needle,
+              after=not_written(lambda: WORK / "c6"))
+cli_error("collect", "unknown recipe", lambda: ["collect", "--recipe", "nosuch", "--out", WORK / "c7"], "no recipe file")
+cli_error("collect", "recipe: invalid YAML", lambda: ["collect", "--recipe", file_at("bad.yaml", "tasks: [a, : b")(),
+                                                      "--out", WORK / "c8"], "not a YAML recipe")
+cli_error("collect", "recipe: unknown setting", lambda: ["collect", "--recipe", file_at(
+    "unknown-key.yaml", "tasks:\n  reach-v3: {stpes: 100}\n")(), "--out", WORK / "c9"], "unknown setting")
+cli_error("collect", "recipe: steps is text", lambda: ["collect", "--recipe", file_at(
+    "text-steps.yaml", "tasks:\n  reach-v3: {histories: 1, steps: many}\n")(), "--out", WORK / "c10"], "steps must be int")
+cli_error("collect", "recipe: no histories anywhere", lambda: ["collect", "--recipe", file_at(
+    "no-histories.yaml", "tasks:\n  reach-v3: {steps: 100}\n")(), "--out", WORK / "c10b"], "no histories")
+cli_error("collect", "recipe: tasks is a list", lambda: ["collect", "--recipe", file_at(
+    "list-tasks.yaml", "tasks: [reach-v3]\n")(), "--out", WORK / "c11"], "non-empty 'tasks:' mapping")
+cli_error("collect", "recipe: task settings are a number", lambda: ["collect", "--recipe", file_at(
+    "number-settings.yaml", "tasks:\n  reach-v3: 5\n")(), "--out", WORK / "c12"], "must be mappings")
+cli_error("collect", "recipe: unknown task", lambda: ["collect", "--recipe", file_at(
+    "unknown-task.yaml", "tasks:\n  reech-v3: {}\n")(), "--out", WORK / "c13"], "reech-v3")
+cli_error("collect", "--out is a file", lambda: ["collect", "--task", "reach-v3", "--steps", "10", "--out",
+                                                 file_at("out-file", "x")()], "not a directory")
+cli_error("collect", "folder finished with other --steps", lambda: ["collect", "--task", "reach-v3", "--histories", "1",
+                                                                    "--steps", "100", "--out", collected()],
+          "made with other settings")
+cli_error("collect", "folder finished with other --seed", lambda: ["collect", "--task", "reach-v3", "--histories", "1",
+                                                                   "--steps", "150", "--seed", "4", "--out", collected()],
+          "made with other settings")
+
+
+def truncated_history_in_collection() -> list[str]:
+    out = WORK / "collected-truncated"
+    shutil.copytree(collected(), out, dirs_exist_ok=True)
+    truncate_file(out / "metaworld" / "reach-v3" / "history-0000.h5")
+    return ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "150", "--out", out]
+
+
+cli_error("collect", "a finished history was truncated since", truncated_history_in_collection, "history-0000.h5")
+
+
+def rerun_collects_nothing() -> str | None:
+    code, output = invoke("collect", "--task", "reach-v3", "--histories", "1", "--steps", "150", "--out", collected())
+    return None if code == 0 and "collected 0 steps" in output else f"exit {code}: {output[-200:]}"
+
+
+documented("collect", "re-running a finished collection collects nothing", rerun_collects_nothing)
+
+
+def partial_leftover_is_overwritten() -> str | None:
+    out = WORK / "collected-partial"
+    folder = out / "metaworld" / "reach-v3"
+    folder.mkdir(parents=True)
+    (folder / "history-0000.h5.partial").write_bytes(b"left by kill -9")
+    code, output = invoke("collect", "--task", "reach-v3", "--histories", "1", "--steps", "50", "--out", out)
+    left = sorted(p.name for p in folder.iterdir())
+    return None if code == 0 and left == ["history-0000.h5", "reach-v3.json"] else f"exit {code}, files {left}"
+
+
+documented("collect", "a .partial left by kill -9 is replaced by the finished file", partial_leftover_is_overwritten)
+
+
+def killed_collection_resumes_identically() -> str | None:
+    """kill -9 a real `python -m vintix collect` mid-run; the re-run equals an uninterrupted one."""
+    args = ["collect", "--task", "reach-v3", "--histories", "4", "--steps", "400", "--envs-per-batch", "2"]
+    straight, killed = WORK / "kill-straight", WORK / "kill-resumed"
+    code, output = invoke(*args, "--out", straight)
+    assert code == 0, output
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    folder = killed / "metaworld" / "reach-v3"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (folder / "history-0000.h5").exists():
+        time.sleep(0.05)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    code, output = invoke(*args, "--out", killed)
+    names = ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(4)]
+    same = all((straight / "metaworld" / "reach-v3" / n).read_bytes() == (folder / n).read_bytes() for n in names)
+    return None if code == 0 and same else f"exit {code}, identical files: {same}"
+
+
+documented("collect", "kill -9 mid-collection, then re-run: identical bytes", killed_collection_resumes_identically)
+
+# Dataset tools
+cli_error("data", "validate a missing folder", ["data", "validate", missing("data")], "not a directory")
+cli_error("data", "validate an empty folder", lambda: ["data", "validate", empty_dir("empty")()], "dataset root")
+for damage, needle in [("nan-reward", "NaN/inf in reward"), ("inf-obs", "NaN/inf in proprio_observation"),
+                       ("nan-action", "NaN/inf in action"), ("truncated", "truncated or corrupted"),
+                       ("corrupted-block", "failed its checksum"), ("step-break", "step_num jumps"),
+                       ("garbage-json", "not valid JSON"), ("missing-json", "missing task metadata"),
+                       ("partial-leftover", "leftover of an interrupted write"), ("empty-h5", "history-0005.h5"),
+                       ("foreign-entry", "'notes' is not a step group"), ("discrete-json", "action_type"),
+                       ("text-dims-json", "action_dim must be a positive integer"), ("json-list", "needs keys"),
+                       ("json-not-utf8", "not valid JSON"), ("float64-reward", "reward is float64"),
+                       ("not-hdf5", "history-0001.h5")]:
+    cli_error("data", f"validate: {damage}", lambda d=damage: ["data", "validate", DATA[d]()], needle)
+cli_error("data", "validate: dims differ from the registry (IB, 7 obs dims)", lambda: ["data", "validate", ib7_data()],
+          "registry expects (6, 3)")
+cli_error("data", "stats of a missing folder", ["data", "stats", missing("data")], "not a directory")
+cli_error("data", "stats: garbage task JSON", lambda: ["data", "stats", DATA["garbage-json"]()], "not valid JSON")
+cli_error("data", "stats: truncated history", lambda: ["data", "stats", DATA["truncated"]()], "history-0000.h5")
+cli_error("data", "plot: unknown reference table", lambda: ["data", "plot", clean_data(), "--reference", "bogus",
+                                                            "--out", WORK / "figs"], "bogus")
+cli_error("data", "plot: zero bins", lambda: ["data", "plot", clean_data(), "--bins", "0", "--out", WORK / "figs0"],
+          "--bins")
+cli_error("data", "plot: corrupted block", lambda: ["data", "plot", DATA["corrupted-block"](), "--reference", "paper",
+                                                    "--out", WORK / "figs1"], "failed its checksum")
+
+
+def corrupted_block_read() -> object:
+    from vintix.data import LearningHistory
+
+    return LearningHistory(DATA["corrupted-block"]() / "metaworld" / "reach-v3" / "history-0000.h5").read(0, 300)
+
+
+api_error("data", "LearningHistory.read over a corrupted block", corrupted_block_read, "history-0000.h5")
+def read_out_of_range() -> str | None:
+    from vintix.data import LearningHistory
+
+    path = clean_data() / "metaworld" / "reach-v3" / "history-0000.h5"
+    try:
+        LearningHistory(path).read(250, 400)
+    except IndexError as error:  # a sequence's error, naming the file and its rows
+        return None if str(path) in str(error) and "[0, 300)" in str(error) else str(error)
+    return "no error"
+
+
+documented("data", "LearningHistory.read past the end: IndexError naming file and rows", read_out_of_range)
+api_error("data", "writer: append after close", lambda: _append_after_close(), "after close")
+api_error("data", "LearningHistory of a missing file", lambda: __import__("vintix.data", fromlist=["x"]).LearningHistory(
+    missing("h.h5")).num_steps, "no such file")
+
+
+def _append_after_close() -> object:
+    from vintix.data import LearningHistoryWriter
+
+    writer = LearningHistoryWriter(WORK / "writer" / "closed.h5", 3, 2)
+    writer.append(np.zeros(3), np.zeros(2), 0.0, 0)
+    writer.close()
+    return writer.append(np.zeros(3), np.zeros(2), 0.0, 1)
+
+
+def writer_call(**kwargs: object) -> Callable[[], object]:
+    def call() -> object:
+        from vintix.data import LearningHistoryWriter
+
+        arguments = {"obs_dim": 3, "act_dim": 2, **kwargs}
+        rows = arguments.pop("rows", None)
+        with LearningHistoryWriter(WORK / "writer" / "h.h5", **arguments) as writer:
+            writer.append(*(rows or (np.zeros((4, 3)), np.zeros((4, 2)), np.zeros(4), np.arange(4))))
+        return writer.path
+
+    return call
+
+
+api_error("data", "writer: NaN observation", writer_call(rows=(np.full((4, 3), np.nan), np.zeros((4, 2)), np.zeros(4),
+                                                              np.arange(4))), "NaN/inf in observation")
+api_error("data", "writer: step_num starting at 3", writer_call(rows=(np.zeros((4, 3)), np.zeros((4, 2)), np.zeros(4),
+                                                                    np.arange(3, 7))), "step_num 3 after -1")
+api_error("data", "writer: obs_dim 0", writer_call(obs_dim=0), "obs_dim")
+api_error("data", "writer: chunk_size 0", writer_call(chunk_size=0), "chunk_size")
+api_error("data", "writer: float step_num", writer_call(rows=(np.zeros((4, 3)), np.zeros((4, 2)), np.zeros(4),
+                                                              np.arange(4.0))), "expected an integer")
+
+# Training
+TRAIN = ["train", "--out"]
+for setting, needle in [("max_steps=abc", "max_steps must be int"), ("lr=-1", "lr=-1"), ("lr=.nan", "lr must be float"),
+                        ("nosuchfield=1", "unknown TrainConfig fields"), ("max_steps", "expects field=value"),
+                        ("tasks=reach-v3", "tasks must be list"), ("model=huge", "model preset 'huge'"),
+                        ("device=tpu", "device must be"), ("window_len=100000", "exceeds the model's context_len"),
+                        ("select_every=3", "multiple of log_every"), ("batch_size=0", "batch_size=0"),
+                        ("beta2=1.5", "beta2=1.5"), ("model_overrides={n_heads: 0}", "n_heads=0"),
+                        ("model_overrides={widht: 3}", "unknown ModelConfig fields"),
+                        ("tasks=[reech-v3]", "Did you mean"), ("expert_tail_fraction=2", "expert_tail_fraction=2.0")]:
+    cli_error("train", f"--set {setting}", lambda s=setting: ["train", "--data", clean_data(), "--out", WORK / "t-set",
+                                                              "--set", s], needle,
+              after=not_written(lambda: WORK / "t-set"))
+cli_error("train", "--config missing file", lambda: ["train", "--config", missing("c.yaml"), "--data", clean_data()],
+          "neither a model preset")
+cli_error("train", "--config invalid YAML", lambda: ["train", "--config", file_at("bad-config.yaml", "a: [")(),
+                                                     "--data", clean_data()], "not valid YAML")
+cli_error("train", "--config YAML list", lambda: ["train", "--config", file_at("list-config.yaml", "- 1\n- 2\n")(),
+                                                  "--data", clean_data()], "expected a mapping")
+cli_error("train", "--data missing", lambda: ["train", "--data", missing("d"), "--out", WORK / "t1", *QUICK_TRAIN],
+          "not a directory")
+cli_error("train", "--data empty", lambda: ["train", "--data", empty_dir("empty2")(), "--out", WORK / "t2", *QUICK_TRAIN],
+          "no task folder")
+cli_error("train", "--out is a file", lambda: ["train", "--data", clean_data(), "--out", file_at("run-file", "x")(),
+                                               *QUICK_TRAIN], "not a directory")
+cli_error("train", "--set device=cuda without a GPU", lambda: ["train", "--data", clean_data(), "--out", WORK / "t3",
+                                                               *QUICK_TRAIN, "--set", "device=cuda"], "no GPU")
+for damage, needle in [("nan-reward", "NaN/inf in reward"), ("inf-obs", "NaN/inf in proprio_observation"),
+                       ("nan-action", "NaN/inf in action"), ("truncated", "history-0000.h5"),
+                       ("corrupted-block", "failed its checksum"), ("step-break", "step_num jumps"),
+                       ("garbage-json", "not valid JSON"), ("empty-h5", "history-0005.h5"),
+                       ("foreign-entry", "'notes' is not a step group"), ("discrete-json", "action_type"),
+                       ("float64-reward", "reward is float64"), ("not-hdf5", "history-0001.h5"),
+                       ("json-not-utf8", "not valid JSON")]:
+    cli_error("train", f"data: {damage}", lambda d=damage: ["train", "--data", DATA[d](), "--out", WORK / f"t-{d}",
+                                                           *QUICK_TRAIN], needle,
+              after=not_written(lambda d=damage: WORK / f"t-{d}" / "checkpoints"))
+cli_error("train", "data: IB folder with 7 obs dims in JSON and data", lambda: [
+    "train", "--data", ib7_data(), "--out", WORK / "t-ib7", *QUICK_TRAIN, "--set", "tasks=[industrial_benchmark]"],
+    "registry's industrial-benchmark-10-v1")
+cli_error("train", "data: task not in the registry", lambda: ["train", "--data", unknown_task_data(), "--out",
+                                                              WORK / "t-unknown", *QUICK_TRAIN], "not in the task registry")
+cli_error("train", "data: expert distillation without noise_free_fraction", lambda: [
+    "train", "--data", no_fraction_data(), "--out", WORK / "t-ed", *QUICK_TRAIN, "--set", "expert_distillation=true"],
+    "noise_free_fraction")
+cli_error("train", "data: window longer than every history", lambda: [
+    "train", "--data", clean_data(), "--out", WORK / "t-window", *QUICK_TRAIN,
+    "--set", "model_overrides={n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, "
+    "mlp_dim: 32, context_len: 1024}", "--set", "window_len=1000"], "no history holds a window")
+
+
+def trains_anyway(data: str, expect: str) -> Callable[[], str | None]:
+    def check() -> str | None:
+        code, output = invoke("train", "--data", DATA[data](), "--out", WORK / f"t-ok-{data}", *QUICK_TRAIN)
+        return None if code == 0 and expect in output else f"exit {code}: {output[-300:]}"
+
+    return check
+
+
+documented("train", "data: a history without checksums (published layout) trains", trains_anyway(
+    "published-layout", "1 tasks"))
+documented("train", "data: a .partial leftover is not a history: training ignores it", trains_anyway(
+    "partial-leftover", "1 tasks"))
+documented("train", "data: a task folder without histories gets no windows", trains_anyway("json-only-task", "1 tasks"))
+cli_error("train", "--set stats_cache_dir under a file", lambda: [
+    "train", "--data", clean_data(), "--out", WORK / "t-cache", *QUICK_TRAIN, "--set",
+    f"stats_cache_dir={file_at('cache-file', 'x')() / 'stats'}"], "is a file, not a directory")
+
+
+def corrupted_stats_cache_is_recomputed() -> str | None:
+    cache = WORK / "stats-cache"
+    args = ["train", "--data", clean_data(), *QUICK_TRAIN, "--set", f"stats_cache_dir={cache}"]
+    code, output = invoke(*args, "--out", WORK / "t-cache1")
+    for entry in cache.glob("*.json"):
+        entry.write_text("{ damaged")
+    code, output = invoke(*args, "--out", WORK / "t-cache2")
+    return None if code == 0 and all(json.loads(e.read_text())["validated"] for e in cache.glob("*.json")) else output
+
+
+documented("train", "a damaged statistics cache entry is recomputed", corrupted_stats_cache_is_recomputed)
+
+
+def resume_falls_back(run: str) -> Callable[[], str | None]:
+    def check() -> str | None:
+        out = RUNS[run]()
+        code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN, "--set", "max_steps=3")
+        ok = code == 0 and "step-00000002 is damaged" in output and "resuming from" in output
+        return None if ok else f"exit {code}: {output[-300:]}"
+
+    return check
+
+
+for run in ("truncated-optimizer", "truncated-rng", "garbage-trainer-json", "trainer-json-wrong-step",
+            "truncated-weights", "garbage-model-json"):
+    documented("train", f"resume: newest checkpoint has a {run}: falls back with a note", resume_falls_back(run))
+cli_error("train", "resume: no intact checkpoint", lambda: ["train", "--data", clean_data(), "--out", RUNS["all-damaged"](),
+                                                            *QUICK_TRAIN, "--set", "max_steps=3"],
+          "no intact checkpoint to resume from")
+cli_error("train", "resume into another model config", lambda: [
+    "train", "--data", clean_data(), "--out", trained_run(), *QUICK_TRAIN, "--set",
+    "model_overrides={n_layers: 2, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, "
+    "head_layers: 1, context_len: 64}", "--set", "max_steps=3"], "cannot resume")
+
+
+def partial_checkpoint_ignored() -> str | None:
+    out = RUNS["partial-leftover"]()
+    code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN, "--set", "max_steps=3")
+    left = sorted(p.name for p in (out / "checkpoints").iterdir())
+    ok = code == 0 and "resuming from" in output and left == ["step-00000001", "step-00000002", "step-00000003"]
+    return None if ok else f"exit {code}, checkpoints {left}: {output[-200:]}"
+
+
+documented("train", "resume: a step-N.partial left by kill -9 is ignored, then removed", partial_checkpoint_ignored)
+
+
+def pusher_v4_trains() -> str | None:
+    code, output = invoke("train", "--data", pusher_v4_data(), "--out", WORK / "t-pusher", *QUICK_TRAIN,
+                          "--set", "tasks=[Pusher-v4]")
+    return None if code == 0 and "1 tasks" in output else f"exit {code}: {output[-300:]}"
+
+
+documented("train", "the published dataset's Pusher-v4 folder trains (alias of v5)", pusher_v4_trains)
+
+
+def killed_training_resumes_identically() -> str | None:
+    """kill -9 a real `python -m vintix train` after its first checkpoint; the resumed run equals a straight one."""
+    from safetensors.torch import load_file
+
+    args = ["train", "--data", str(clean_data()), *QUICK_TRAIN, "--set", "max_steps=40", "--set", "checkpoint_every=5",
+            "--set", "log_every=5"]
+    straight, killed = WORK / "train-straight", WORK / "train-killed"
+    code, output = invoke(*args, "--out", straight)
+    assert code == 0, output
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (killed / "checkpoints" / "step-00000005").exists():
+        time.sleep(0.05)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    code, output = invoke(*args, "--out", killed)
+    a = load_file(str(straight / "checkpoints" / "step-00000040" / "model.safetensors"))
+    b = load_file(str(killed / "checkpoints" / "step-00000040" / "model.safetensors"))
+    same = all(torch.equal(a[k], b[k]) for k in a)
+    return None if code == 0 and same else f"exit {code}, identical weights: {same}"
+
+
+documented("train", "kill -9 mid-training, then re-run: identical weights", killed_training_resumes_identically)
+
+
+def config_call(**fields: object) -> Callable[[], object]:
+    from vintix.train import TrainConfig
+
+    return lambda: TrainConfig(**fields)
+
+
+api_error("train", "TrainConfig(max_steps='abc')", config_call(max_steps="abc"), "max_steps must be int")
+api_error("train", "TrainConfig(warmup_steps=-1)", config_call(warmup_steps=-1), "warmup_steps=-1")
+api_error("train", "TrainConfig(min_lr_fraction=3)", config_call(min_lr_fraction=3), "min_lr_fraction=3")
+
+
+def nan_loss_stops() -> object:
+    from vintix.train import Trainer, load_config
+
+    config = load_config("tiny", {"data": str(clean_data()), "out": str(WORK / "t-nan-loss")},
+                         [s for s in QUICK_TRAIN if s != "--set"] + ["max_steps=4", "checkpoint_every=2"])
+
+    def diverge(model: object, step: int) -> None:
+        with torch.no_grad():
+            model.ln_f.weight[0] = float("nan")  # type: ignore[attr-defined]
+
+    return Trainer(config, callbacks=[(3, diverge)]).run()
+
+
+api_error("train", "a NaN loss mid-run (weights diverged after step 3)", nan_loss_stops, "step 4: the loss or its gradient")
+
+# Evaluation
+EVAL = ["eval", "--tasks", "reach-v3", "--shots", "1", "--seeds", "1"]
+for option, value, needle in [("--shots", "0", "shots=0"), ("--seeds", "0", "seeds=0"), ("--seeds", "-1", "seeds=-1"),
+                              ("--threads", "0", "--threads"), ("--batch-envs", "0", "batch_envs=0"),
+                              ("--first-seed", "-1", "first_seed=-1"), ("--prompt-steps", "-3", "prompt_steps=-3"),
+                              ("--reference", "bogus", "bogus"), ("--device", "cuda", "no GPU"),
+                              ("--device", "tpu", "tpu"), ("--variation", "viscosity=abc", "NAME=NUMBER"),
+                              ("--variation", "viscosity=0.05", "viscosity"), ("--variation", "viscosity=-1", "viscosity")]:
+    out = WORK / f"e-bad{option}{value}"
+    cli_error("eval", f"{option} {value}", lambda o=option, v=value, out=out: [
+        *EVAL, "--checkpoint", model_checkpoint(), o, v, "--out", out], needle, after=not_written(lambda out=out: out))
+cli_error("eval", "--checkpoint missing", lambda: [*EVAL, "--checkpoint", missing("ckpt")], "no such checkpoint")
+cli_error("eval", "--checkpoint a file", lambda: [*EVAL, "--checkpoint", file_at("ckpt-file", "x")()],
+          "neither a model checkpoint")
+cli_error("eval", "--out under a file (before the run, not after)", lambda: [
+    *EVAL, "--checkpoint", model_checkpoint(), "--out", file_at("eval-out-file", "x")() / "results"],
+    "is a file, not a directory")
+cli_error("eval", "a shipped model's name this checkout lacks", ["eval", "--checkpoint", "no-such-model", "--tasks",
+                                                                 "Hopper-v5"], "no shipped model of that name")
+
+
+def nan_prompt() -> list[object]:
+    root = WORK / "prompt-nan"
+    if not root.exists():
+        shutil.copytree(collected(), root)
+        with h5py.File(root / "metaworld" / "reach-v3" / "history-0000.h5", "r+") as f:
+            group = next(iter(f))
+            f[group]["reward"][3] = np.nan
+    return [*EVAL, "--checkpoint", model_checkpoint(), "--prompt-from", root, "--prompt-steps", "10",
+            "--out", WORK / "e-nan-prompt"]
+
+
+cli_error("eval", "--prompt-from a history with a NaN reward", nan_prompt, "NaN")
+cli_error("eval", "--checkpoint an empty folder", lambda: [*EVAL, "--checkpoint", empty_dir("empty3")()],
+          "neither a model checkpoint")
+for damage, needle in [("truncated-weights", "truncated or damaged"), ("garbage-json", "not valid JSON"),
+                       ("json-missing-keys", "missing keys"), ("nan-weights", "NaN/inf"),
+                       ("no-weights", "model.safetensors is not"), ("future-format", "checkpoint format 99"),
+                       ("groups-malformed", "does not describe a model"), ("config-text-heads", "n_heads must be int"),
+                       ("weights-of-another-model", "does not fit the model")]:
+    cli_error("eval", f"checkpoint: {damage}", lambda d=damage: [*EVAL, "--checkpoint", CHECKPOINTS[d](), "--out",
+                                                                 WORK / "e-ckpt"], needle)
+cli_error("eval", "a run whose newest checkpoint is truncated", lambda: [
+    *EVAL, "--checkpoint", RUNS["truncated-weights-eval"](), "--out", WORK / "e-run"], "newest intact checkpoint is",
+    after=not_written(lambda: WORK / "e-run"))
+cli_error("eval", "unknown task", lambda: ["eval", "--checkpoint", model_checkpoint(), "--tasks", "reech-v3"],
+          "Did you mean")
+cli_error("eval", "task of a group the checkpoint lacks", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "industrial-benchmark-35-v1"], "no encoder")
+cli_error("eval", "empty --tasks", lambda: ["eval", "--checkpoint", model_checkpoint(), "--tasks", ","], "no tasks")
+cli_error("eval", "--prompt-from missing", lambda: [*EVAL, "--checkpoint", model_checkpoint(), "--prompt-from",
+                                                    missing("data")], "not a directory")
+cli_error("eval", "--prompt-from a dataset without the task", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "push-v3", "--shots", "1", "--seeds", "1",
+    "--prompt-from", clean_data()], "no learning history of push-v3")
+cli_error("eval", "--prompt-steps longer than the window", lambda: [
+    *EVAL, "--checkpoint", model_checkpoint(), "--prompt-from", collected(), "--prompt-steps", "100"], "window")
+cli_error("eval", "--prompt-from with more seeds than histories", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "3",
+    "--prompt-from", collected(), "--prompt-steps", "10"], "histories")
+
+
+def agent(tasks: list[str] | None = None) -> object:
+    from vintix.agent import Agent
+
+    a = Agent.from_pretrained(model_checkpoint())
+    if tasks is not None:
+        a.reset(tasks)
+    return a
+
+
+api_error("agent", "act before reset", lambda: agent().act([np.zeros(39)], [0.0], [True]), "reset")
+api_error("agent", "reset with no tasks", lambda: agent([]), "at least one task")
+api_error("agent", "reset with an unknown task", lambda: agent(["reech-v3"]), "Did you mean")
+api_error("agent", "reset with a task of another group", lambda: agent(["Hopper-v5"]), "no encoder")
+api_error("agent", "reset with too few action spaces", lambda: agent().reset(["reach-v3", "push-v3"], []),
+          "action spaces")
+api_error("agent", "act with a NaN observation", lambda: agent(["reach-v3"]).act([np.full(39, np.nan)], [0.0], [True]),
+          "NaN or inf")
+api_error("agent", "act with an inf reward", lambda: agent(["reach-v3"]).act([np.zeros(39)], [np.inf], [False]),
+          "NaN or inf")
+api_error("agent", "act with a wrong observation size", lambda: agent(["reach-v3"]).act([np.zeros(11)], [0.0], [True]),
+          "shape (11,)")
+api_error("agent", "act with two observations for one env", lambda: agent(["reach-v3"]).act(
+    [np.zeros(39), np.zeros(39)], [0.0, 0.0], [True, True]), "reset with 1 envs")
+api_error("agent", "keep an index out of range", lambda: agent(["reach-v3"]).keep([3]), "keep needs indices")
+api_error("agent", "act with a text reward", lambda: agent(["reach-v3"]).act([np.zeros(39)], ["lots"], [False]),
+          "reward")
+api_error("agent", "act with a None observation", lambda: agent(["reach-v3"]).act([None], [0.0], [True]), "shape")
+api_error("agent", "from_pretrained on a device this machine lacks", lambda: __import__("vintix").Agent.from_pretrained(
+    model_checkpoint(), device="cuda" if not torch.cuda.is_available() else "tpu"), "device")
+api_error("agent", "reset with an action space of the wrong size", lambda: agent().reset(
+    ["reach-v3"], [__import__("gymnasium").spaces.Box(-1, 1, (7,))]), "action space has shape (7,)")
+
+
+def nan_model_acts() -> object:
+    from vintix.agent import Agent
+
+    a = Agent.from_pretrained(model_checkpoint())
+    with torch.no_grad():
+        for parameter in a.model.heads.parameters():
+            parameter.fill_(float("nan"))
+    a.reset(["reach-v3"])
+    return a.act([np.zeros(39)], [0.0], [True])
+
+
+api_error("agent", "act with a NaN model", nan_model_acts, "NaN/inf")
+api_error("agent", "prompt with NaN rewards", lambda: agent(["reach-v3"]).prompt(
+    [np.zeros((5, 39))], [np.zeros((5, 4))], [np.full(5, np.nan)], [np.arange(5)]), "NaN or inf")
+api_error("agent", "prompt longer than the window", lambda: agent(["reach-v3"]).prompt(
+    [np.zeros((100, 39))], [np.zeros((100, 4))], [np.zeros(100)], [np.arange(100)]), "window")
+api_error("agent", "prompts of different lengths", lambda: agent(["reach-v3", "push-v3"]).prompt(
+    [np.zeros((5, 39)), np.zeros((4, 39))], [np.zeros((5, 4)), np.zeros((4, 4))], [np.zeros(5), np.zeros(4)],
+    [np.arange(5), np.arange(4)]), "same number of steps")
+api_error("agent", "from_pretrained of a missing name", lambda: __import__("vintix").Agent.from_pretrained("no-such-model"),
+          "no shipped model")
+
+
+def eval_config(**fields: object) -> Callable[[], object]:
+    from vintix.evaluate import EvalConfig
+
+    return lambda: EvalConfig(**fields)
+
+
+api_error("eval", "EvalConfig(shots=0)", eval_config(shots=0), "shots=0")
+api_error("eval", "EvalConfig(seeds='3')", eval_config(seeds="3"), "seeds must be int")
+
+# Reports
+cli_error("report", "a missing folder", ["report", missing("results")], "no episodes.csv")
+cli_error("report", "an empty folder", lambda: ["report", empty_dir("empty4")(), "--out", WORK / "r0"], "no episodes.csv")
+cli_error("report", "unknown reference table", lambda: ["report", eval_results(), "--reference", "bogus", "--out",
+                                                        WORK / "r1"], "bogus")
+cli_error("report", "--plateau-shots 0", lambda: ["report", eval_results(), "--plateau-shots", "0", "--out", WORK / "r2"],
+          "--plateau-shots")
+
+
+def garbage_results(kind: str) -> Callable[[], list[object]]:
+    def make() -> list[object]:
+        folder = WORK / f"results-{kind}"
+        shutil.copytree(eval_results(), folder, dirs_exist_ok=True)
+        if kind == "garbage-csv":
+            (folder / "episodes.csv").write_text("a,b\n1,2\n")
+        elif kind == "garbage-run-json":
+            (folder / "run.json").write_text("{")
+        elif kind == "text-return":
+            text = (folder / "episodes.csv").read_text().splitlines()
+            header = text[0].split(",")
+            row = text[1].split(",")
+            row[header.index("return")] = "lots"
+            (folder / "episodes.csv").write_text("\n".join([text[0], ",".join(row), *text[2:]]) + "\n")
+        elif kind == "no-rows":
+            (folder / "episodes.csv").write_text((folder / "episodes.csv").read_text().splitlines()[0] + "\n")
+        return ["report", folder, "--out", WORK / f"r-{kind}"]
+
+    return make
+
+
+cli_error("report", "episodes.csv of another tool", garbage_results("garbage-csv"), "episodes.csv")
+cli_error("report", "run.json not JSON", garbage_results("garbage-run-json"), "run.json")
+cli_error("report", "a return that is text", garbage_results("text-return"), "episodes.csv")
+cli_error("report", "episodes.csv without rows", garbage_results("no-rows"), "no episodes")
+
+# Demonstrators
+cli_error("demonstrator", "eval an unknown task", ["demonstrator", "eval", "--task", "reech-v3"], "Did you mean")
+cli_error("demonstrator", "eval a task without weights", ["demonstrator", "eval", "--task", "Humanoid-v5"],
+          "no trained demonstrator")
+cli_error("demonstrator", "eval with 0 episodes", ["demonstrator", "eval", "--task", "reach-v3", "--episodes", "0"],
+          "--episodes")
+cli_error("demonstrator", "eval only Bi-DexHands tasks", lambda: ["demonstrator", "eval", "--task", "Hand-Pen",
+                                                                  "--out", WORK / "d.csv"], "IsaacGym",
+          after=not_written(lambda: WORK / "d.csv"))
+cli_error("demonstrator", "train a Meta-World task (scripted)", ["demonstrator", "train", "--task", "reach-v3"],
+          "scripted")
+cli_error("demonstrator", "train an unknown task", ["demonstrator", "train", "--task", "reech-v3"], "Did you mean")
+cli_error("demonstrator", "train with 0 timesteps", lambda: ["demonstrator", "train", "--task", "InvertedPendulum-v5",
+                                                            "--timesteps", "0", "--out", WORK / "dw"], "--timesteps")
+
+
+def package_table_untouched() -> str | None:
+    from vintix.demonstrators.scores import scores_path
+
+    before = scores_path().read_bytes()
+    cwd = os.getcwd()
+    os.chdir(WORK)
+    try:
+        code, output = invoke("demonstrator", "eval", "--task", "reach-v3", "--episodes", "1")
+    finally:
+        os.chdir(cwd)
+    ok = code == 0 and scores_path().read_bytes() == before and (WORK / "demonstrator-scores.csv").is_file()
+    return None if ok else f"exit {code}, package table changed: {scores_path().read_bytes() != before}"
+
+
+documented("demonstrator", "eval leaves the package's score table alone", package_table_untouched)
+cli_error("demonstrator", "eval --out under a file (before measuring)", lambda: [
+    "demonstrator", "eval", "--task", "reach-v3", "--episodes", "1", "--out", file_at("demo-file", "x")() / "s.csv"],
+    "is a file, not a directory")
+cli_error("demonstrator", "eval --out a directory", lambda: [
+    "demonstrator", "eval", "--task", "reach-v3", "--episodes", "1", "--out", empty_dir("scores-dir")()],
+    "it is a directory")
+
+# Benchmarks (invalid ones must fail before timing anything)
+cli_error("bench", "train an unknown preset", ["bench", "train", "huge"], "huge")
+cli_error("bench", "train with batch size 0", ["bench", "train", "tiny", "--batch-size", "0"], "--batch-size")
+cli_error("bench", "infer with 0 envs", ["bench", "infer", "tiny", "--envs", "0", "--no-recompute"], "--envs")
+cli_error("bench", "infer an unknown preset", ["bench", "infer", "huge"], "huge")
+
+# Envs and the task registry from Python
+api_error("tasks", "make_env of a Bi-DexHands task", lambda: __import__("vintix").make_env("Hand-Pen"), "IsaacGym")
+api_error("tasks", "make_env with a variation the domain lacks", lambda: __import__("vintix").make_env(
+    "reach-v3", viscosity=0.05), "viscosity")
+api_error("tasks", "make_env with a negative viscosity", lambda: __import__("vintix").make_env(
+    "HalfCheetah-v5", viscosity=-1.0), "viscosity must be >= 0")
+api_error("tasks", "make_env with a NaN gravity scale", lambda: __import__("vintix").make_env(
+    "HalfCheetah-v5", gravity_scale=float("nan")), "gravity_scale")
+documented("tasks", "get_task('Pusher-v4') is Pusher-v5",
+           lambda: None if __import__("vintix").get_task("Pusher-v4").name == "Pusher-v5" else "not the v5 task")
+
+
+def python_dash_m() -> str | None:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "industrial_benchmark"],
+                            capture_output=True, text=True, env=env, timeout=120)
+    return None if result.returncode == 0 and "21 tasks" in result.stdout else f"exit {result.returncode}"
+
+
+documented("cli", "python -m vintix runs the CLI", python_dash_m)
+cli_error("cli", "python -m vintix with a bad option", ["tasks", "--domian", "mujoco"], "No such option")
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", help="run the cases whose area or name contains this text")
+    parser.add_argument("--verbose", action="store_true", help="print every outcome's message")
+    parser.add_argument("--keep", action="store_true", help=f"keep the work folder ({WORK})")
+    args = parser.parse_args()
+    cases = [c for c in CASES if not args.only or args.only in c.area or args.only in c.name]
+    counts: Counter[str] = Counter()
+    started = time.time()
+    print(f"{len(cases)} bad inputs; work folder {WORK}")
+    print(f"{'#':>3}  {'area':<12} {'case':<62} {'expects':<10} outcome")
+    for number, case in enumerate(cases, 1):
+        try:
+            outcome = case.run()
+        except Exception as error:  # noqa: BLE001 - a fixture of the probe itself failed: show it, go on
+            outcome = Outcome("traceback", f"probe fixture failed: {type(error).__name__}: {one_line(error)}")
+        counts[outcome.category] += 1
+        flag = "" if outcome.category in ("clear", "documented") else "  <--"
+        print(f"{number:>3}  {case.area:<12} {case.name[:62]:<62} {case.expect:<10} {outcome.category}{flag}", flush=True)
+        if args.verbose or flag:
+            print(textwrap.indent(outcome.detail, "       "))
+    print(f"\n{len(cases)} bad inputs in {time.time() - started:.0f} s: " + ", ".join(
+        f"{counts[c]} {c}" for c in ("clear", "documented", "confusing", "traceback", "silent")))
+    if not args.keep:
+        shutil.rmtree(WORK, ignore_errors=True)
+    return 0 if counts["traceback"] == counts["silent"] == counts["confusing"] == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,77 @@
+"""Type checks for the config dataclasses, whose values often arrive as YAML or ``--set`` strings.
+
+A dataclass does not check its annotations, so ``max_steps: int`` happily holds ``"abc"`` and fails
+later, deep in a comparison. `check_field_types` checks every field against its annotation before
+anything runs, and makes the harmless conversions (an int where a float is meant, a Path where a
+str is meant).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import types
+import typing
+from pathlib import Path
+from typing import Any
+
+_INVALID = object()
+
+
+def _coerce(value: Any, hint: Any) -> Any:
+    """`value` as the type `hint` names, or `_INVALID`. Generic types it does not know pass unchecked."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        for arg in args:
+            result = _coerce(value, arg)
+            if result is not _INVALID:
+                return result
+        return _INVALID
+    if hint is Any:
+        return value
+    if hint is type(None):
+        return value if value is None else _INVALID
+    if hint is bool:
+        return value if isinstance(value, bool) else _INVALID
+    if hint is int:
+        return value if isinstance(value, int) and not isinstance(value, bool) else _INVALID
+    if hint is float:  # NaN or inf is no setting's meaningful value
+        number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        return float(value) if number else _INVALID
+    if hint is str:
+        return value if isinstance(value, str) else str(value) if isinstance(value, os.PathLike) else _INVALID
+    if hint is Path:
+        return Path(value) if isinstance(value, (str, os.PathLike)) else _INVALID
+    if origin is list:
+        if not isinstance(value, (list, tuple)):
+            return _INVALID
+        items = [_coerce(item, args[0]) for item in value]
+        return _INVALID if any(item is _INVALID for item in items) else items
+    if origin is dict:
+        if not isinstance(value, dict):
+            return _INVALID
+        pairs = [(_coerce(k, args[0]), _coerce(v, args[1])) for k, v in value.items()]
+        return _INVALID if any(_INVALID in pair for pair in pairs) else dict(pairs)
+    if isinstance(hint, type) and origin is None:  # a class of ours, e.g. CollectionPlan.schedule: NoiseSchedule
+        return value if isinstance(value, hint) else _INVALID
+    return value
+
+
+def type_name(hint: Any) -> str:
+    """``int``, ``float | None``, ``list[str]``: an annotation as a user reads it."""
+    if isinstance(hint, type) and not typing.get_args(hint):
+        return "None" if hint is type(None) else hint.__name__
+    return str(hint).replace("typing.", "").replace("pathlib.", "").replace("NoneType", "None")
+
+
+def check_field_types(instance: Any, error: type[Exception]) -> None:
+    """Check (and convert in place) every field of a dataclass instance against its annotation;
+    raise `error` naming the first field that does not fit."""
+    hints = typing.get_type_hints(type(instance))
+    for field in dataclasses.fields(instance):
+        value = getattr(instance, field.name)
+        converted = _coerce(value, hints[field.name])
+        if converted is _INVALID:
+            raise error(f"{type(instance).__name__}.{field.name} must be {type_name(hints[field.name])}, got {value!r}")
+        object.__setattr__(instance, field.name, converted)  # works for frozen dataclasses too
