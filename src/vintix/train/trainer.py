@@ -369,7 +369,7 @@ class Trainer:
 
     def _select(self) -> float:
         """Score the model in context (rank 0 only); keep it as ``checkpoints/best`` if it beats the best."""
-        score = float(self._on_rank0_in_eval_mode(lambda: self.scorer(self.model, self.select_tasks)))  # type: ignore[misc]
+        score = float(self._in_eval_mode_with_forked_rng(lambda: self.scorer(self.model, self.select_tasks)))  # type: ignore[misc]
         if self.best_score is None or score > self.best_score:
             self.best_score = score
             save_best_checkpoint(self.out, self.model, {
@@ -482,9 +482,9 @@ class Trainer:
     def _run_callbacks(self) -> None:
         due = [fn for every, fn in self.callbacks if self.step % every == 0]
         if due and self.dist.is_main:
-            self._on_rank0_in_eval_mode(lambda: [fn(self.model, self.step) for fn in due])
+            self._in_eval_mode_with_forked_rng(lambda: [fn(self.model, self.step) for fn in due])
 
-    def _on_rank0_in_eval_mode(self, work: Callable[[], object]) -> object:
+    def _in_eval_mode_with_forked_rng(self, work: Callable[[], object]) -> object:
         """Run `work` with the model in eval mode inside a forked RNG, so it cannot change the run."""
         self.model.eval()
         try:
