@@ -16,20 +16,16 @@ $(INSTALLED): requirements.lock pyproject.toml
 
 install: $(INSTALLED)
 
-# The whole pipeline, small enough for a laptop (about 2 minutes on 2 cores): real envs against the
-# paper's random scores, noise-distilled histories, a short training run, in-context evaluation,
-# report. Re-running resumes: collection and training skip what is done. Outputs under demo/.
+# Watch the shipped model (src/vintix/agent/pretrained/cpu-suite, trained on the CPU suite by the
+# commands in its TRAINING.md) learn in context: cold-start many-shot runs on Meta-World goals, Industrial
+# Benchmark seeds and MuJoCo seeds it never saw in training, plus a held-out setpoint; a per-shot table
+# of normalized scores, then a report with curves. No training. Outputs under demo/.
 DEMO := demo
+DEMO_TASKS := reach-v3,push-v3,button-press-v3,drawer-close-v3,door-open-v3,window-open-v3,industrial-benchmark-30-v1,industrial-benchmark-70-v1,industrial-benchmark-90-v1,Reacher-v5,Pusher-v5
 demo: $(INSTALLED)
-	$(BIN)/vintix tasks
-	$(BIN)/vintix check-envs --episodes 5
-	$(BIN)/vintix demonstrator list
-	$(BIN)/vintix collect --recipe tiny --out $(DEMO)/data
-	$(BIN)/vintix data plot $(DEMO)/data --out $(DEMO)/figs
-	$(BIN)/vintix train --config tiny --data $(DEMO)/data --out $(DEMO)/run \
-		--set max_steps=30 --set window_len=500 --set batch_size=4 --set warmup_steps=5 --set log_every=5
-	$(BIN)/vintix eval --checkpoint $(DEMO)/run --tasks reach-v3,button-press-v3 --shots 5 --seeds 2 --out $(DEMO)/results
-	$(BIN)/vintix report $(DEMO)/results --out $(DEMO)/report
+	$(BIN)/vintix eval --checkpoint cpu-suite --tasks $(DEMO_TASKS) --shots 10 --seeds 3 --first-seed 100 \
+		--reference ours --label "Vintix cpu-suite" --out $(DEMO)/results
+	$(BIN)/vintix report $(DEMO)/results --reference ours --plateau-shots 3 --out $(DEMO)/report
 
 test: $(INSTALLED)
 	$(BIN)/python -m pytest -q

@@ -1,0 +1,51 @@
+"""The model shipped in the package: loads by name, small, says how it was made, acts in every domain."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inference_model import one_torch_thread  # noqa: F401  (autouse fixture)
+from vintix.agent import Agent, resolve_checkpoint, shipped_models
+from vintix.collect.recipe import load_recipe
+from vintix.model.checkpoint import WEIGHTS_FILE, CheckpointError, read_metadata
+from vintix.tasks import get_task, make_env
+
+
+def test_the_cpu_suite_model_is_shipped_small_and_records_how_it_was_made():
+    assert "cpu-suite" in shipped_models()
+    folder = resolve_checkpoint("cpu-suite")
+    assert (folder / WEIGHTS_FILE).stat().st_size <= 25 * 2**20
+    extra = read_metadata(folder)["extra"]
+    suite = {plan.task for plan in load_recipe("cpu-suite") if get_task(plan.task).split == "train"}
+    assert set(extra["trained_tasks"]) == suite  # trained on the suite's train split, nothing held out
+    assert np.isfinite(extra["in_context_score"]) and extra["select_reference"] == "ours"
+    assert "vintix train" in (folder / "TRAINING.md").read_text()
+
+
+def test_a_path_wins_over_a_shipped_name_and_unknown_names_list_the_shipped_ones(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "cpu-suite").mkdir()
+    with pytest.raises(CheckpointError, match="neither a model checkpoint"):
+        resolve_checkpoint("cpu-suite")  # the empty folder here, not the shipped model
+    with pytest.raises(CheckpointError, match="shipped: .*cpu-suite"):
+        resolve_checkpoint("no-such-model")
+
+
+def test_the_shipped_model_acts_within_bounds_in_all_three_domains_and_on_held_out_tasks():
+    agent = Agent.from_pretrained("cpu-suite")
+    tasks = ["door-open-v3", "industrial-benchmark-30-v1", "Reacher-v5", "door-lock-v3", "industrial-benchmark-90-v1"]
+    envs = [make_env(task, seed=100) for task in tasks]
+    agent.reset(tasks, [env.action_space for env in envs])
+    # Held-out tasks have their own statistics in the checkpoint (collected, never trained on).
+    assert [t.norm_source for t in agent.tasks] == ["task"] * len(tasks)
+    observations = [env.reset()[0] for env in envs]
+    rewards, starts = np.zeros(len(envs)), np.ones(len(envs), dtype=bool)
+    for _ in range(3):
+        actions = agent.act(observations, rewards, starts)
+        for i, (env, action) in enumerate(zip(envs, actions)):
+            assert env.action_space.contains(action.astype(env.action_space.dtype))
+            observations[i], rewards[i], *_ = env.step(action)
+        starts[:] = False
+    for env in envs:
+        env.close()
