@@ -187,17 +187,22 @@ def clean_data() -> Path:
     return write_dataset(WORK / "data-clean")
 
 
-def damaged_data(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
-    """A copy of the clean dataset with one damage applied to its first reach-v3 history."""
+def damaged_copy(source: Callable[[], Path], name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
+    """A copy of `source()` under WORK/name with `damage` applied to it, made on first use."""
 
     @once
     def make() -> Path:
-        root = WORK / f"data-{name}"
-        shutil.copytree(clean_data(), root)
-        damage(root / "metaworld" / "reach-v3")
-        return root
+        copy = WORK / name
+        shutil.copytree(source(), copy)
+        damage(copy)
+        return copy
 
     return make
+
+
+def damaged_data(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
+    """A copy of the clean dataset with one damage applied to its reach-v3 folder."""
+    return damaged_copy(clean_data, f"data-{name}", lambda root: damage(root / "metaworld" / "reach-v3"))
 
 
 def set_value(key: str, row: int, value: float) -> Callable[[Path], None]:
@@ -298,25 +303,8 @@ def ib7_data() -> Path:
     return write_dataset(WORK / "data-ib7", task="industrial-benchmark-10-v1", obs_dim=7, histories=1, steps=500)
 
 
-@once
-def unknown_task_data() -> Path:
-    root = WORK / "data-unknown"
-    write_dataset(root)
-    meta_path = root / "metaworld" / "reach-v3" / "reach-v3.json"
-    meta = json.loads(meta_path.read_text())
-    meta_path.write_text(json.dumps({**meta, "task_name": "my-own-task-v1"}))
-    return root
-
-
-@once
-def no_fraction_data() -> Path:
-    root = WORK / "data-no-fraction"
-    write_dataset(root)
-    meta_path = root / "metaworld" / "reach-v3" / "reach-v3.json"
-    meta = json.loads(meta_path.read_text())
-    del meta["noise_free_fraction"]
-    meta_path.write_text(json.dumps(meta))
-    return root
+unknown_task_data = damaged_data("unknown-task", rewrite_json(lambda m: m.update(task_name="my-own-task-v1")))
+no_fraction_data = damaged_data("no-fraction", rewrite_json(lambda m: m.pop("noise_free_fraction")))
 
 
 @once
@@ -343,14 +331,8 @@ def trained_run() -> Path:
 
 
 def damaged_run(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
-    @once
-    def make() -> Path:
-        out = WORK / f"run-{name}"
-        shutil.copytree(trained_run(), out)
-        damage(out / "checkpoints")
-        return out
-
-    return make
+    """A copy of the trained run with one damage applied to its checkpoints folder."""
+    return damaged_copy(trained_run, f"run-{name}", lambda out: damage(out / "checkpoints"))
 
 
 def newest(checkpoints: Path) -> Path:
@@ -382,14 +364,8 @@ def model_checkpoint() -> Path:
 
 
 def damaged_checkpoint(name: str, damage: Callable[[Path], object]) -> Callable[[], Path]:
-    @once
-    def make() -> Path:
-        directory = WORK / f"ckpt-{name}"
-        shutil.copytree(model_checkpoint(), directory)
-        damage(directory)
-        return directory
-
-    return make
+    """A copy of the model-only checkpoint with one damage applied to it."""
+    return damaged_copy(model_checkpoint, f"ckpt-{name}", damage)
 
 
 @once
@@ -509,18 +485,17 @@ for option, value, needle in [("--envs-per-batch", "0", "envs_per_batch=0"), ("-
 cli_error("collect", "unknown recipe", lambda: ["collect", "--recipe", "nosuch", "--out", WORK / "c7"], "no recipe file")
 cli_error("collect", "recipe: invalid YAML", lambda: ["collect", "--recipe", file_at("bad.yaml", "tasks: [a, : b")(),
                                                       "--out", WORK / "c8"], "not a YAML recipe")
-cli_error("collect", "recipe: unknown setting", lambda: ["collect", "--recipe", file_at(
-    "unknown-key.yaml", "tasks:\n  reach-v3: {stpes: 100}\n")(), "--out", WORK / "c9"], "unknown setting")
-cli_error("collect", "recipe: steps is text", lambda: ["collect", "--recipe", file_at(
-    "text-steps.yaml", "tasks:\n  reach-v3: {histories: 1, steps: many}\n")(), "--out", WORK / "c10"], "steps must be int")
-cli_error("collect", "recipe: no histories anywhere", lambda: ["collect", "--recipe", file_at(
-    "no-histories.yaml", "tasks:\n  reach-v3: {steps: 100}\n")(), "--out", WORK / "c10b"], "no histories")
-cli_error("collect", "recipe: tasks is a list", lambda: ["collect", "--recipe", file_at(
-    "list-tasks.yaml", "tasks: [reach-v3]\n")(), "--out", WORK / "c11"], "non-empty 'tasks:' mapping")
-cli_error("collect", "recipe: task settings are a number", lambda: ["collect", "--recipe", file_at(
-    "number-settings.yaml", "tasks:\n  reach-v3: 5\n")(), "--out", WORK / "c12"], "must be mappings")
-cli_error("collect", "recipe: unknown task", lambda: ["collect", "--recipe", file_at(
-    "unknown-task.yaml", "tasks:\n  reech-v3: {}\n")(), "--out", WORK / "c13"], "reech-v3")
+for name, recipe, needle in [
+    ("unknown setting", "tasks:\n  reach-v3: {stpes: 100}\n", "unknown setting"),
+    ("steps is text", "tasks:\n  reach-v3: {histories: 1, steps: many}\n", "steps must be int"),
+    ("no histories anywhere", "tasks:\n  reach-v3: {steps: 100}\n", "no histories"),
+    ("tasks is a list", "tasks: [reach-v3]\n", "non-empty 'tasks:' mapping"),
+    ("task settings are a number", "tasks:\n  reach-v3: 5\n", "must be mappings"),
+    ("unknown task", "tasks:\n  reech-v3: {}\n", "reech-v3"),
+]:
+    slug = name.replace(" ", "-")
+    cli_error("collect", f"recipe: {name}", lambda r=recipe, f=f"{slug}.yaml": [
+        "collect", "--recipe", file_at(f, r)(), "--out", WORK / f"c-{f}"], needle)
 cli_error("collect", "--out is a file", lambda: ["collect", "--task", "reach-v3", "--steps", "10", "--out",
                                                  file_at("out-file", "x")()], "not a directory")
 cli_error("collect", "folder finished with other --steps", lambda: ["collect", "--task", "reach-v3", "--histories", "1",
@@ -562,24 +537,32 @@ def partial_leftover_is_overwritten() -> str | None:
 documented("collect", "a .partial left by kill -9 is replaced by the finished file", partial_leftover_is_overwritten)
 
 
-def killed_collection_resumes_identically() -> str | None:
-    """kill -9 a real `python -m vintix collect` mid-run; the re-run equals an uninterrupted one."""
-    args = ["collect", "--task", "reach-v3", "--histories", "4", "--steps", "400", "--envs-per-batch", "2"]
-    straight, killed = WORK / "kill-straight", WORK / "kill-resumed"
+def straight_and_killed_runs(args: list[str], name: str, marker: str) -> tuple[Path, Path, int, str]:
+    """Run `vintix *args` straight into WORK/name-straight, and as a real process into WORK/name-killed
+    that gets kill -9 once `marker` (a path in its --out) exists, then re-run it there. Returns both
+    folders and the re-run's exit code and output."""
+    straight, killed = WORK / f"{name}-straight", WORK / f"{name}-killed"
     code, output = invoke(*args, "--out", straight)
     assert code == 0, output
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    folder = killed / "metaworld" / "reach-v3"
     deadline = time.time() + 120
-    while time.time() < deadline and not (folder / "history-0000.h5").exists():
+    while time.time() < deadline and not (killed / marker).exists():
         time.sleep(0.05)
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
     code, output = invoke(*args, "--out", killed)
+    return straight, killed, code, output
+
+
+def killed_collection_resumes_identically() -> str | None:
+    """kill -9 a real `python -m vintix collect` mid-run; the re-run equals an uninterrupted one."""
+    args = ["collect", "--task", "reach-v3", "--histories", "4", "--steps", "400", "--envs-per-batch", "2"]
+    straight, killed, code, _ = straight_and_killed_runs(args, "kill", "metaworld/reach-v3/history-0000.h5")
     names = ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(4)]
-    same = all((straight / "metaworld" / "reach-v3" / n).read_bytes() == (folder / n).read_bytes() for n in names)
+    folders = [run / "metaworld" / "reach-v3" for run in (straight, killed)]
+    same = all((folders[0] / n).read_bytes() == (folders[1] / n).read_bytes() for n in names)
     return None if code == 0 and same else f"exit {code}, identical files: {same}"
 
 
@@ -798,20 +781,8 @@ def killed_training_resumes_identically() -> str | None:
 
     args = ["train", "--data", str(clean_data()), *QUICK_TRAIN, "--set", "max_steps=40", "--set", "checkpoint_every=5",
             "--set", "log_every=5"]
-    straight, killed = WORK / "train-straight", WORK / "train-killed"
-    code, output = invoke(*args, "--out", straight)
-    assert code == 0, output
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
-    while time.time() < deadline and not (killed / "checkpoints" / "step-00000005").exists():
-        time.sleep(0.05)
-    os.kill(process.pid, signal.SIGKILL)
-    process.wait()
-    code, output = invoke(*args, "--out", killed)
-    a = load_file(str(straight / "checkpoints" / "step-00000040" / "model.safetensors"))
-    b = load_file(str(killed / "checkpoints" / "step-00000040" / "model.safetensors"))
+    straight, killed, code, _ = straight_and_killed_runs(args, "train", "checkpoints/step-00000005")
+    a, b = (load_file(str(run / "checkpoints" / "step-00000040" / "model.safetensors")) for run in (straight, killed))
     same = all(torch.equal(a[k], b[k]) for k in a)
     return None if code == 0 and same else f"exit {code}, identical weights: {same}"
 
