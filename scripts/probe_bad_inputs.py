@@ -571,19 +571,21 @@ documented("collect", "kill -9 mid-collection, then re-run: identical bytes", ki
 # Dataset tools
 cli_error("data", "validate a missing folder", ["data", "validate", missing("data")], "not a directory")
 cli_error("data", "validate an empty folder", lambda: ["data", "validate", empty_dir("empty")()], "dataset root")
-# What vintix data validate names in each damaged dataset. Training runs the same checks, so most of
-# them are probed against vintix train as well (a .partial leftover it ignores: a documented case).
-VALIDATE_NAMES = {
-    "nan-reward": "NaN/inf in reward", "inf-obs": "NaN/inf in proprio_observation", "nan-action": "NaN/inf in action",
-    "truncated": "truncated or corrupted", "corrupted-block": "failed its checksum", "step-break": "step_num jumps",
-    "garbage-json": "not valid JSON", "missing-json": "missing task metadata",
-    "partial-leftover": "leftover of an interrupted write", "empty-h5": "history-0005.h5",
-    "foreign-entry": "'notes' is not a step group", "discrete-json": "action_type",
-    "text-dims-json": "action_dim must be a positive integer", "json-list": "needs keys",
-    "json-not-utf8": "not valid JSON", "float64-reward": "reward is float64", "not-hdf5": "history-0001.h5",
+# What vintix data validate, then vintix train, names in each damaged dataset. Training runs the same
+# checks, but its reader names a truncated file rather than the damage; None: not probed against
+# training (a .partial leftover it ignores is a documented case below; the metadata cases are validation's).
+DAMAGE_NAMES = {
+    "nan-reward": ("NaN/inf in reward",) * 2, "inf-obs": ("NaN/inf in proprio_observation",) * 2,
+    "nan-action": ("NaN/inf in action",) * 2, "truncated": ("truncated or corrupted", "history-0000.h5"),
+    "corrupted-block": ("failed its checksum",) * 2, "step-break": ("step_num jumps",) * 2,
+    "garbage-json": ("not valid JSON",) * 2, "missing-json": ("missing task metadata", None),
+    "partial-leftover": ("leftover of an interrupted write", None), "empty-h5": ("history-0005.h5",) * 2,
+    "foreign-entry": ("'notes' is not a step group",) * 2, "discrete-json": ("action_type",) * 2,
+    "text-dims-json": ("action_dim must be a positive integer", None), "json-list": ("needs keys", None),
+    "json-not-utf8": ("not valid JSON",) * 2, "float64-reward": ("reward is float64",) * 2,
+    "not-hdf5": ("history-0001.h5",) * 2,
 }
-VALIDATE_ONLY = {"missing-json", "partial-leftover", "text-dims-json", "json-list"}
-for damage, needle in VALIDATE_NAMES.items():
+for damage, (needle, _) in DAMAGE_NAMES.items():
     cli_error("data", f"validate: {damage}", lambda d=damage: ["data", "validate", DATA[d]()], needle)
 cli_error("data", "validate: dims differ from the registry (IB, 7 obs dims)", lambda: ["data", "validate", ib7_data()],
           "registry expects (6, 3)")
@@ -680,11 +682,9 @@ cli_error("train", "--out is a file", lambda: ["train", "--data", clean_data(), 
                                                *QUICK_TRAIN], "not a directory")
 cli_error("train", "--set device=cuda without a GPU", lambda: ["train", "--data", clean_data(), "--out", WORK / "t3",
                                                                *QUICK_TRAIN, "--set", "device=cuda"], "no GPU")
-for damage, needle in VALIDATE_NAMES.items():
-    if damage in VALIDATE_ONLY:
+for damage, (_, needle) in DAMAGE_NAMES.items():
+    if needle is None:
         continue
-    if damage == "truncated":  # the reader names the file, not the kind of damage
-        needle = "history-0000.h5"
     cli_error("train", f"data: {damage}", lambda d=damage: ["train", "--data", DATA[d](), "--out", WORK / f"t-{d}",
                                                            *QUICK_TRAIN], needle,
               after=not_written(lambda d=damage: WORK / f"t-{d}" / "checkpoints"))
