@@ -2,6 +2,7 @@
 
 import filecmp
 
+import h5py
 import numpy as np
 import pytest
 from scipy.stats import spearmanr
@@ -9,6 +10,7 @@ from scipy.stats import spearmanr
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.data import LearningHistory, read_task_metadata, validate_dataset
 from vintix.demonstrators import ScriptedMetaWorldDemonstrator
+from vintix.tasks import make_env
 
 PLAN = CollectionPlan("reach-v3", histories=3, steps=300, envs_per_batch=2)
 
@@ -46,6 +48,34 @@ def test_histories_follow_the_format_and_the_episode_structure(tmp_path):
             np.testing.assert_array_equal(history.episode_starts, [0, 100, 200])  # 100-step episodes
             rows = history.read(0, 300)
             assert np.all(np.abs(rows["action"]) <= 1)
+
+
+def test_histories_store_what_the_demonstrator_proposed_before_noise(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=300, schedule=NoiseSchedule(noise_free_fraction=0.5))
+    [summary] = collect(plan, tmp_path)
+    with LearningHistory(summary.path) as history:
+        rows, env_seed = history.read(0, 300, demonstrator_action=True), history.env_seed
+    executed, proposed = rows["action"], rows["demonstrator_action"]
+    np.testing.assert_array_equal(executed[150:], proposed[150:])  # the noise-free half plays the demonstrator
+    assert np.abs(executed[:50] - proposed[:50]).mean() > 0.2  # where ε ≈ 1 the executed action is noise
+    # The stored proposal is the scripted policy's action on the stored observation (same env: same goal),
+    # inside the action bounds.
+    env = make_env("reach-v3", seed=env_seed)
+    env.reset()
+    policy = ScriptedMetaWorldDemonstrator("reach-v3")
+    np.testing.assert_allclose(np.clip(policy.act(rows["observation"][:20], [env] * 20), -1, 1), proposed[:20],
+                               atol=1e-6)
+    env.close()
+
+
+def test_a_folder_collected_without_demonstrator_actions_is_refused(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=100)
+    [summary] = collect(plan, tmp_path)
+    with h5py.File(summary.path, "r+") as f:
+        for group in f:
+            del f[group]["demonstrator_action"]
+    with pytest.raises(CollectionSettingsError, match="no demonstrator actions \\(now stored\\)"):
+        collect(plan, tmp_path)
 
 
 def test_same_seed_same_bytes_other_seed_other_data(tmp_path):

@@ -122,6 +122,55 @@ def test_reads_a_file_written_from_the_official_spec(tmp_path):
     assert task.metadata["reward_scale"] == 0.1 and task.history_paths == [task_dir / "0.h5"]
 
 
+def test_demonstrator_actions_round_trip_beside_the_official_rows(tmp_path):
+    rows = make_rows(30)
+    proposed = np.random.default_rng(1).uniform(-1, 1, size=(30, 2))
+    path = tmp_path / "h.h5"
+    with LearningHistoryWriter(path, obs_dim=3, act_dim=2, chunk_size=7, demonstrator_actions=True) as writer:
+        writer.append(*(v[0] for v in rows.values()), demonstrator_action=proposed[0])  # one step, then a batch
+        writer.append(*(v[1:] for v in rows.values()), demonstrator_action=proposed[1:])
+    history = LearningHistory(path)
+    assert history.has_demonstrator_action
+    assert_rows_equal(history.read(3, 20), rows, 3, 20)  # official readers see the official rows only
+    got = history.read(3, 20, demonstrator_action=True)
+    assert got["demonstrator_action"].dtype == np.float32
+    np.testing.assert_array_equal(got["demonstrator_action"], proposed[3:20].astype(np.float32))
+
+
+@pytest.mark.parametrize("spelling", ["demonstrator_actions", "expert_action"])
+def test_other_spellings_of_demonstrator_actions_are_read(tmp_path, spelling):
+    rows = official_file(tmp_path / "0.h5", n=25, chunk=10, obs_dim=4, act_dim=2, episode_len=50)
+    with h5py.File(tmp_path / "0.h5", "r+") as f:
+        for name in f:
+            f[name].create_dataset(spelling, data=f[name]["action"][()] * 2)
+    got = LearningHistory(tmp_path / "0.h5").read(5, 25, demonstrator_action=True)
+    np.testing.assert_array_equal(got["demonstrator_action"], rows["action"][5:25].astype(np.float32) * 2)
+
+
+def test_a_file_without_demonstrator_actions_says_so_when_asked_for_them(tmp_path):
+    official_file(tmp_path / "0.h5", n=25, chunk=10, obs_dim=4, act_dim=2, episode_len=50)
+    history = LearningHistory(tmp_path / "0.h5")
+    assert not history.has_demonstrator_action
+    with pytest.raises(DatasetError, match="stores no demonstrator actions"):
+        history.read(0, 5, demonstrator_action=True)
+
+
+def test_writer_asks_for_demonstrator_actions_exactly_when_made_with_them(tmp_path):
+    rows = make_rows(4)
+    with LearningHistoryWriter(tmp_path / "a.h5", 3, 2, demonstrator_actions=True) as writer:
+        with pytest.raises(DatasetError, match="made with demonstrator_actions, so append\\(\\) needs"):
+            writer.append(*rows.values())
+        with pytest.raises(DatasetError, match=r"demonstrator_action of shape \(4, 3\), expected \(4, 2\)"):
+            writer.append(*rows.values(), demonstrator_action=np.zeros((4, 3)))
+        with pytest.raises(DatasetError, match="NaN/inf in demonstrator_action"):
+            writer.append(*rows.values(), demonstrator_action=np.full((4, 2), np.nan))
+        writer.append(*rows.values(), demonstrator_action=rows["action"])
+    with LearningHistoryWriter(tmp_path / "b.h5", 3, 2) as writer:
+        with pytest.raises(DatasetError, match="made without demonstrator_actions, so append\\(\\) takes no"):
+            writer.append(*rows.values(), demonstrator_action=rows["action"])
+        writer.append(*rows.values())
+
+
 def test_find_tasks_lists_finished_histories_only(tmp_path):
     task_dir = task_directory(tmp_path, "metaworld", "door-open")
     write_task_metadata(task_dir, "door-open-v3", obs_dim=3, act_dim=2, group="metaworld")

@@ -89,6 +89,35 @@ def test_damage_is_reported_once_with_its_file(dataset, damage, expected):
     assert expected in problem.message
 
 
+def add_demonstrator_actions(f: h5py.File, name: str = "demonstrator_action") -> None:
+    for group in f:
+        f[group].create_dataset(name, data=f[group]["action"][()])
+
+
+@pytest.mark.parametrize(
+    ("damage", "expected"),
+    [
+        (lambda f: f["7-13/demonstrator_action"].__setitem__(2, np.nan), "NaN/inf in demonstrator_action at row 9;"),
+        (lambda f: f["0-6"].__delitem__("demonstrator_action"),
+         "groups disagree on their demonstrator-action dataset (None, demonstrator_action)"),
+        (lambda f: f["0-6"].move("demonstrator_action", "expert_action"),
+         "groups disagree on their demonstrator-action dataset (demonstrator_action, expert_action)"),
+        (lambda f: [f["0-6"].__delitem__("demonstrator_action"), f["0-6"].create_dataset("demonstrator_action",
+                                                                                        data=np.zeros((7, 5)))],
+         "group '0-6' has demonstrator_action of shape (7, 5), expected the action's (7, 2)"),
+    ],
+)
+def test_demonstrator_actions_are_checked_like_actions(dataset, damage, expected):
+    with h5py.File(hopper_file(dataset), "r+") as f:
+        add_demonstrator_actions(f)
+    assert validate_dataset(dataset) == []
+    with h5py.File(hopper_file(dataset), "r+") as f:
+        damage(f)
+    problem = only_problem(dataset)
+    assert problem.path == hopper_file(dataset)
+    assert expected in problem.message
+
+
 def test_wrong_dtype(dataset):
     with h5py.File(hopper_file(dataset), "r+") as f:
         for name in ("0-6", "7-13"):

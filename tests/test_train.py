@@ -232,6 +232,8 @@ def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):
         make_config(metaworld_data, tmp_path / "run", select_every=3, log_every=2)
     with pytest.raises(ConfigError, match="needs an in-context scorer"):
         Trainer(make_config(metaworld_data, tmp_path / "run", select_every=2))
+    with pytest.raises(ConfigError, match="expert_rows must be 'auto' or 'tail', got 'all'"):
+        make_config(metaworld_data, tmp_path / "run", expert_rows="all")
 
 
 def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path):

@@ -21,8 +21,9 @@ from vintix.train.data import (
 )
 
 
-def write_history(path, episode_lengths, history_id, obs_dim=39, act_dim=4, offset=0.0):
-    """A history whose obs[:, 0] is the row index and obs[:, 1] the history id, so windows can be traced."""
+def write_history(path, episode_lengths, history_id, obs_dim=39, act_dim=4, offset=0.0, demonstrator=False):
+    """A history whose obs[:, 0] is the row index and obs[:, 1] the history id, so windows can be traced;
+    with `demonstrator`, it stores demonstrator actions whose first entry is minus the row index."""
     n = sum(episode_lengths)
     rows = np.arange(n, dtype=np.float32)
     obs = np.zeros((n, obs_dim), np.float32) + offset
@@ -31,17 +32,17 @@ def write_history(path, episode_lengths, history_id, obs_dim=39, act_dim=4, offs
     action = np.zeros((n, act_dim), np.float32)
     action[:, 0] = rows
     step_num = np.concatenate([np.arange(length) for length in episode_lengths])
-    with LearningHistoryWriter(path, obs_dim, act_dim, chunk_size=64) as writer:
-        writer.append(obs, action, rows / 10, step_num)
+    with LearningHistoryWriter(path, obs_dim, act_dim, chunk_size=64, demonstrator_actions=demonstrator) as writer:
+        writer.append(obs, action, rows / 10, step_num, demonstrator_action=-action if demonstrator else None)
 
 
-def write_task(root, name, histories, obs_dim=39, act_dim=4, offset=0.0, **metadata):
+def write_task(root, name, histories, obs_dim=39, act_dim=4, offset=0.0, demonstrator=False, **metadata):
     """histories: one list of episode lengths per history; `offset` is added to every observation."""
     folder = task_directory(root, "metaworld", name)
     write_task_metadata(folder, name, obs_dim, act_dim, **metadata)
     for i, lengths in enumerate(histories):
         write_history(folder / f"history-{i:04d}.h5", lengths, history_id=i, obs_dim=obs_dim, act_dim=act_dim,
-                      offset=offset)
+                      offset=offset, demonstrator=demonstrator)
     return folder
 
 
@@ -167,6 +168,28 @@ def test_expert_distillation_reads_only_the_noise_free_tail(dataset, tmp_path):
         load(dataset, tmp_path, expert_distillation=True, tasks=["push-v3"])
     half = load(dataset, tmp_path, expert_distillation=True, expert_tail_fraction=0.5, tasks=["push-v3"])
     assert half.tasks[0].steps == 300
+
+
+def test_expert_distillation_learns_stored_demonstrator_actions_on_every_row(tmp_path):
+    root = tmp_path / "data"
+    write_task(root, "reach-v3", [[20] * 10, [15] * 8], noise_free_fraction=0.25, demonstrator=True)
+    data = load(root, tmp_path, expert_distillation=True, tasks=["reach-v3"])
+    assert data.tasks[0].rows == "every row, target the demonstrator's action"
+    windows = WindowDataset(data, window_len=30, seed=0)
+    starts = []
+    for i in range(100):
+        w = windows[i]
+        rows = w["obs"][:, 0]
+        assert np.array_equal(w["action"][:, 0], -rows)  # the target: the demonstrator's action
+        inside = w["step_num"] != 0
+        assert np.array_equal(w["prev_action"][inside, 0], rows[inside] - 1)  # the context: the executed ones
+        starts.append(rows[0])
+    assert min(starts) < 90  # not only the noise-free tail
+    tail = load(root, tmp_path, expert_distillation=True, expert_rows="tail", tasks=["reach-v3"])
+    assert tail.tasks[0].rows == "noise-free tail, target the executed action"
+    assert tail.tasks[0].steps == 40 + 30
+    plain = WindowDataset(load(root, tmp_path, tasks=["reach-v3"]), window_len=30, seed=0)[0]
+    assert np.array_equal(plain["action"][:, 0], plain["obs"][:, 0])  # AD learns the executed actions
 
 
 def test_obs_statistics_stream_over_all_rows_and_are_cached_by_fingerprint(dataset, tmp_path):

@@ -8,7 +8,8 @@ complete, so re-running an interrupted collection finishes exactly what is missi
 same bytes as an uninterrupted run even if the demonstrator's batched numerics depend on the batch.
 
 Each history records the settings it was made with (root attributes: env seed, base seed, steps,
-noise schedule). Re-running into a folder whose histories were made with other settings is refused
+noise schedule) and, per step, the demonstrator's action before noise (``demonstrator_action``).
+Re-running into a folder whose histories were made with other settings is refused
 (`CollectionSettingsError`): skipping them as "already done" would silently keep the wrong data.
 """
 
@@ -112,18 +113,19 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     low, high = envs[0].action_space.low, envs[0].action_space.high
     epsilons = plan.schedule.epsilon(np.arange(plan.steps), plan.steps)
     writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim,
-                                     attrs=plan.recorded_settings(i)) for i in indices]
+                                     attrs=plan.recorded_settings(i), demonstrator_actions=True) for i in indices]
     try:
         observations = np.stack([env.reset()[0] for env in envs])
         step_nums = np.zeros(len(envs), dtype=np.int64)
         label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
         for t in tqdm(range(plan.steps), desc=label, position=progress_position, leave=False, mininterval=1.0):
-            expert = demonstrator.act(observations, envs)
+            # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
+            expert = np.clip(demonstrator.act(observations, envs), low, high)
             for i, (env, (_, rng), writer) in enumerate(zip(envs, seeds, writers)):
                 # float32 before stepping, so the action stored is exactly the action executed.
                 action = mix_action(expert[i], float(epsilons[t]), rng, low, high).astype(np.float32)
                 next_obs, reward, terminated, truncated, _ = env.step(action)
-                writer.append(observations[i], action, reward, step_nums[i])
+                writer.append(observations[i], action, reward, step_nums[i], demonstrator_action=expert[i])
                 if terminated or truncated:
                     next_obs, _ = env.reset()
                     step_nums[i] = 0
@@ -145,8 +147,9 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
     Files without recorded settings (older or published ones) are compared on their length alone."""
     with LearningHistory(path) as history:
         found = {**history.attrs, "steps": history.num_steps}
-    return [f"{key} {found[key]!r} (now {value!r})" for key, value in plan.recorded_settings(index).items()
-            if key in found and found[key] != value]
+        differences = [] if history.has_demonstrator_action else ["no demonstrator actions (now stored)"]
+    return differences + [f"{key} {found[key]!r} (now {value!r})" for key, value in plan.recorded_settings(index).items()
+                          if key in found and found[key] != value]
 
 
 def _check_existing_histories(plan: CollectionPlan, root: Path) -> None:

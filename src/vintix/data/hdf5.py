@@ -10,6 +10,11 @@ inclusive), each with ``proprio_observation`` float32 (n, obs_dim), ``action`` f
 ``reward`` float32 (n,) and ``step_num`` int32 (n,). Row i is (o_i, a_i taken at o_i, r_i after a_i);
 ``step_num == 0`` marks an episode start and a file starts with one.
 
+Optionally a group also holds ``demonstrator_action`` float32 (n, act_dim): the action the demonstrator
+proposed at o_i before noise was mixed in (the field the Vintix II dataset adds; its loader also reads
+the spellings ``expert_action`` and ``demonstrator_actions``, and so do we). Files without it, such as
+the published Vintix dataset, read and validate as before.
+
 Our writer stores every dataset in chunks of whole rows with HDF5's Fletcher-32 checksum filter, so
 a block damaged on disk fails to read (a `DatasetError` naming the file) instead of feeding wrong
 numbers to training. Chunking and filters are invisible to readers of the official format, and files
@@ -58,6 +63,17 @@ FIELDS: dict[str, str] = {
     "step_num": "step_num",
 }
 """Key returned by `LearningHistory.read` -> dataset name on disk."""
+
+DEMONSTRATOR_ACTION = "demonstrator_action"
+"""Optional dataset, float32 (n, act_dim): the demonstrator's action before noise, per row."""
+
+DEMONSTRATOR_ACTION_SPELLINGS = (DEMONSTRATOR_ACTION, "demonstrator_actions", "expert_action")
+"""Names under which histories store it (ours first, then the other names the Vintix II loader reads)."""
+
+
+def official_dtype(dataset: str) -> np.dtype:
+    """The dtype of a dataset of a step group; demonstrator actions, under any spelling, are actions."""
+    return DTYPES.get(dataset, DTYPES["action"])
 
 PathLike = str | os.PathLike[str]
 
@@ -147,6 +163,8 @@ class Layout:
     obs_dim: int | None
     act_dim: int | None
     problems: list[str]
+    demonstrator_action: str | None = None
+    """On-disk name of the demonstrator actions, which every group holds; None if the file has none."""
 
 
 def parse_group_name(name: str) -> tuple[int, int] | None:
@@ -159,6 +177,11 @@ def parse_group_name(name: str) -> tuple[int, int] | None:
 
 
 _REBUILD = "re-collect or delete the file"
+
+
+def demonstrator_action_name(group: h5py.Group) -> str | None:
+    """The spelling under which a step group stores demonstrator actions, or None."""
+    return next((name for name in DEMONSTRATOR_ACTION_SPELLINGS if isinstance(group.get(name), h5py.Dataset)), None)
 
 
 def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, int, int] | None:
@@ -178,6 +201,11 @@ def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, in
             _REBUILD,
         )
         return None
+    demonstrator = demonstrator_action_name(group)
+    if demonstrator is not None and group[demonstrator].shape != act:
+        log.add("demonstrator shape", f"group {name!r} has {demonstrator} of shape {group[demonstrator].shape}, "
+                f"expected the action's {act}", _REBUILD)
+        return None
     return step[0], obs[1], act[1]
 
 
@@ -193,6 +221,7 @@ def inspect_layout(file: h5py.File) -> Layout:
     groups: list[GroupSpan] = []
     claimed: list[GroupSpan] = []  # usable groups plus broken ones by name, so a broken group is not also a gap
     dims: set[tuple[int, int]] = set()
+    demonstrator_names: set[str | None] = set()
     for name, item in file.items():
         span = parse_group_name(name)
         if span is None or not isinstance(item, h5py.Group):
@@ -206,10 +235,15 @@ def inspect_layout(file: h5py.File) -> Layout:
         if span[1] - span[0] + 1 != rows:
             log.add("rows", f"group {name!r} is named for {span[1] - span[0] + 1} steps but holds {rows}", _REBUILD)
         dims.add((obs_dim, act_dim))
+        demonstrator_names.add(demonstrator_action_name(item))
         groups.append(GroupSpan(name, span[0], span[0] + rows))
         claimed.append(groups[-1])
     if len(dims) > 1:
         log.add("dims", f"groups disagree on (obs_dim, act_dim): {sorted(dims)}", f"it mixes tasks; {_REBUILD}")
+    if len(demonstrator_names) > 1:
+        found = sorted(str(n) for n in demonstrator_names)
+        log.add("demonstrator", f"groups disagree on their demonstrator-action dataset ({', '.join(found)}); a history "
+                "stores it in every group under one name or in none", _REBUILD)
     expected_start = 0
     for group in sorted(claimed, key=lambda g: g.start):
         if group.start != expected_start:
@@ -221,7 +255,8 @@ def inspect_layout(file: h5py.File) -> Layout:
         log.add("empty", "contains no step groups", "delete it")
     groups.sort(key=lambda g: g.start)
     obs_dim, act_dim = next(iter(dims)) if len(dims) == 1 else (None, None)
-    return Layout(groups, obs_dim, act_dim, log.messages())
+    demonstrator = next(iter(demonstrator_names)) if len(demonstrator_names) == 1 else None
+    return Layout(groups, obs_dim, act_dim, log.messages(), demonstrator)
 
 
 # --------------------------------------------------------------------------------------------
@@ -245,11 +280,12 @@ class LearningHistoryWriter:
 
     ``attrs`` become root attributes of the file (e.g. ``env_seed``, which says which env, and so
     which Meta-World hidden goal, the history was collected on); readers of the official format
-    ignore them.
+    ignore them. With ``demonstrator_actions=True`` every append also takes the demonstrator's
+    action before noise, stored as the optional ``demonstrator_action`` dataset.
     """
 
     def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS,
-                 attrs: dict[str, int | float | str] | None = None) -> None:
+                 attrs: dict[str, int | float | str] | None = None, demonstrator_actions: bool = False) -> None:
         self.path = Path(path)
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
@@ -263,6 +299,9 @@ class LearningHistoryWriter:
         # Rows wait in fixed buffers of one group, so single-step appends cost a copy, not an HDF5 write.
         trailing = {"proprio_observation": (obs_dim,), "action": (act_dim,), "reward": (), "step_num": ()}
         self._buffer = {key: np.empty((chunk_size, *trailing[key]), dtype) for key, dtype in DTYPES.items()}
+        self.demonstrator_actions = demonstrator_actions
+        if demonstrator_actions:
+            self._buffer[DEMONSTRATOR_ACTION] = np.empty((chunk_size, act_dim), DTYPES["action"])
         self._filled = 0
         self._flushed = 0
         self._last_step = -1
@@ -275,16 +314,22 @@ class LearningHistoryWriter:
         """Rows appended so far (written or buffered)."""
         return self._flushed + self._filled
 
-    def append(self, obs: Any, action: Any, reward: Any, step_num: Any) -> None:
+    def append(self, obs: Any, action: Any, reward: Any, step_num: Any, demonstrator_action: Any = None) -> None:
         """Append one step (1-D obs/action, scalar reward/step_num) or a batch (2-D obs/action, 1-D rest).
 
         Everything is checked before anything is buffered, so a rejected call leaves the writer
         unchanged: shapes against obs_dim/act_dim, numeric dtypes (integer step_num), finite values,
         and step_num counting 0, 1, 2, ... within episodes starting from 0 at the file's first row.
+        `demonstrator_action` (shaped like `action`) is required by a writer made with
+        ``demonstrator_actions=True`` and refused by one without.
         """
         if self._file is None:
             raise DatasetError(self.path, "append() after close() or abort(); open a new writer")
-        rows = self._checked_rows(obs, action, reward, step_num)
+        if (demonstrator_action is None) == self.demonstrator_actions:
+            made = "with" if self.demonstrator_actions else "without"
+            raise DatasetError(self.path, f"this writer was made {made} demonstrator_actions, so append() "
+                               f"{'needs' if self.demonstrator_actions else 'takes no'} demonstrator_action")
+        rows = self._checked_rows(obs, action, reward, step_num, demonstrator_action)
         n, offset = len(rows["step_num"]), 0
         while offset < n:
             take = min(n - offset, self.chunk_size - self._filled)
@@ -297,13 +342,18 @@ class LearningHistoryWriter:
         if n:
             self._last_step = int(rows["step_num"][-1])
 
-    def _checked_rows(self, obs: Any, action: Any, reward: Any, step_num: Any) -> dict[str, np.ndarray]:
+    def _checked_rows(self, obs: Any, action: Any, reward: Any, step_num: Any,
+                      demonstrator_action: Any) -> dict[str, np.ndarray]:
         given = {"observation": np.asarray(obs), "action": np.asarray(action),
                  "reward": np.asarray(reward), "step_num": np.asarray(step_num)}
+        disk_names = dict(FIELDS)
+        if demonstrator_action is not None:
+            given[DEMONSTRATOR_ACTION] = np.asarray(demonstrator_action)
+            disk_names[DEMONSTRATOR_ACTION] = DEMONSTRATOR_ACTION
         single = given["observation"].ndim == 1
         lead = () if single else given["observation"].shape[:1]
         expected = {"observation": (*lead, self.obs_dim), "action": (*lead, self.act_dim),
-                    "reward": lead, "step_num": lead}
+                    "reward": lead, "step_num": lead, DEMONSTRATOR_ACTION: (*lead, self.act_dim)}
         for name, values in given.items():
             if values.shape != expected[name]:
                 raise DatasetError(
@@ -318,8 +368,8 @@ class LearningHistoryWriter:
                 raise DatasetError(
                     self.path, f"append() got NaN/inf in {name}; the environment or policy diverged, fix it first"
                 )
-        rows = {disk: (given[key][None] if single else given[key]).astype(DTYPES[disk])
-                for key, disk in FIELDS.items()}
+        rows = {disk: (given[key][None] if single else given[key]).astype(official_dtype(disk))
+                for key, disk in disk_names.items()}
         breaks = step_num_breaks(rows["step_num"], self._last_step)
         if len(breaks):
             i = breaks[0]
@@ -444,6 +494,11 @@ class LearningHistory:
         assert self.layout.act_dim is not None
         return self.layout.act_dim
 
+    @property
+    def has_demonstrator_action(self) -> bool:
+        """Whether the file stores the demonstrator's action before noise (any accepted spelling)."""
+        return self.layout.demonstrator_action is not None
+
     def __len__(self) -> int:
         return self.num_steps
 
@@ -468,24 +523,32 @@ class LearningHistory:
             )
         return np.add.reduceat(self._column("reward").astype(np.float64), starts)
 
-    def read(self, start: int, stop: int) -> dict[str, np.ndarray]:
-        """Rows [start, stop) as ``observation``, ``action``, ``reward``, ``step_num`` in official dtypes."""
+    def read(self, start: int, stop: int, demonstrator_action: bool = False) -> dict[str, np.ndarray]:
+        """Rows [start, stop) as ``observation``, ``action``, ``reward``, ``step_num`` in official dtypes,
+        plus ``demonstrator_action`` if asked (a file without it raises)."""
         groups = self.layout.groups
         if not 0 <= start <= stop <= self.num_steps:
             raise IndexError(f"{self.path}: rows [{start}, {stop}) are outside [0, {self.num_steps})")
+        fields = dict(FIELDS)
+        if demonstrator_action:
+            if self.layout.demonstrator_action is None:
+                raise DatasetError(self.path, "stores no demonstrator actions (none of the datasets "
+                                   f"{list(DEMONSTRATOR_ACTION_SPELLINGS)}); collect with vintix >= 0.2 to get them")
+            fields[DEMONSTRATOR_ACTION] = self.layout.demonstrator_action
         first = bisect_right([g.start for g in groups], start) - 1
         # An empty range still reads a 0-row slice of one group so the result has the right shapes.
         spans = list(takewhile(lambda g: g.start < stop, groups[first + 1 :]))
         spans.insert(0, groups[first])
-        parts: dict[str, list[np.ndarray]] = {key: [] for key in FIELDS}
+        parts: dict[str, list[np.ndarray]] = {key: [] for key in fields}
         with translate_hdf5_errors(self.path):
             for g in spans:
                 lo, hi = max(start, g.start) - g.start, min(stop, g.stop) - g.start
                 group = self._file[g.name]
-                for key, disk in FIELDS.items():
+                for key, disk in fields.items():
                     parts[key].append(group[disk][lo:hi])
         # Cast so callers always get the official dtypes, even from a file that validation would flag.
-        return {key: np.concatenate(parts[key]).astype(DTYPES[disk], copy=False) for key, disk in FIELDS.items()}
+        return {key: np.concatenate(parts[key]).astype(official_dtype(disk), copy=False)
+                for key, disk in fields.items()}
 
     def close(self) -> None:
         """Close the handle now (it would re-open on next use)."""

@@ -18,7 +18,7 @@ from vintix.data.hdf5 import (
     DTYPES,
     MAX_GROUP_ROWS,
     DatasetError,
-    GroupSpan,
+    Layout,
     LearningHistory,
     PathLike,
     ProblemLog,
@@ -27,6 +27,7 @@ from vintix.data.hdf5 import (
     inspect_layout,
     metadata_dims,
     metadata_path,
+    official_dtype,
     open_hdf5,
     read_task_metadata,
     step_num_breaks,
@@ -99,30 +100,32 @@ def validate_history(path: PathLike, dims: tuple[int, int] | None = None) -> lis
                     f"holds (obs_dim, act_dim) = ({layout.obs_dim}, {layout.act_dim}) but the task json declares "
                     f"{dims}; the file belongs to another task, or the json is wrong"
                 )
-            messages += _check_contents(file, layout.groups)
+            messages += _check_contents(file, layout)
     except DatasetError as err:
         messages.append(err.problem)
     return messages
 
 
-def _check_contents(file: h5py.File, groups: list[GroupSpan]) -> list[str]:
-    """Official dtypes, group sizes, finite values and step_num counting, group by group in step order."""
+def _check_contents(file: h5py.File, layout: Layout) -> list[str]:
+    """Official dtypes, group sizes, finite values and step_num counting, group by group in step order
+    (demonstrator actions, when the file has them, are checked like actions)."""
     log = ProblemLog()
     recollect = "re-collect the history"
     rewrite = "rewrite it with LearningHistoryWriter, which casts to the official dtypes"
+    real_valued = ["proprio_observation", "action", "reward"] + [n for n in [layout.demonstrator_action] if n]
     previous_stop, last_step = 0, -1
-    for span in groups:
+    for span in layout.groups:
         name, offset, rows = span.name, span.start, span.stop - span.start
         if rows == 0:  # the layout check already reported that its name promises rows
             continue
         group = file[name]
         if rows > MAX_GROUP_ROWS:
             log.add("size", f"group {name!r} holds {rows} rows, more than {MAX_GROUP_ROWS}", rewrite)
-        for key, dtype in DTYPES.items():
-            if group[key].dtype != dtype:
-                where = f"{key} is {group[key].dtype} in group {name!r}, expected {dtype}"
+        for key in [*DTYPES, *real_valued[3:]]:
+            if group[key].dtype != official_dtype(key):
+                where = f"{key} is {group[key].dtype} in group {name!r}, expected {official_dtype(key)}"
                 log.add(f"dtype {key}", where, rewrite)
-        for key in ("proprio_observation", "action", "reward"):
+        for key in real_valued:
             bad_rows = ~np.isfinite(group[key][()]).reshape(rows, -1).all(axis=1)
             if bad_rows.any():
                 where = f"NaN/inf in {key} at row {offset + np.argmax(bad_rows)}"

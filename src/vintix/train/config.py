@@ -67,7 +67,9 @@ class TrainConfig:
     task_sampling: str = "uniform"
     """'uniform' over tasks (the paper) or 'volume' (proportional to a task's steps)"""
     expert_distillation: bool = False
-    """ablation: train only on the noise-free tail of each history (expert distillation)"""
+    """ablation: learn the demonstrator's actions instead of the history's (expert distillation); see expert_rows"""
+    expert_rows: str = "auto"
+    """expert distillation on 'auto': every row, target = the stored demonstrator action, for tasks whose histories all store it (else 'tail'); 'tail': the noise-free tail only (paper)"""
     expert_tail_fraction: float | None = None
     """tail fraction for expert_distillation (default: each task JSON's noise_free_fraction)"""
     seed: int = 0
@@ -130,6 +132,8 @@ class TrainConfig:
                               "expert_tail_fraction in (0, 1])")
         if self.task_sampling not in ("uniform", "volume"):
             raise ConfigError(f"task_sampling must be 'uniform' or 'volume', got {self.task_sampling!r}")
+        if self.expert_rows not in ("auto", "tail"):
+            raise ConfigError(f"expert_rows must be 'auto' or 'tail', got {self.expert_rows!r}")
         if self.select_every < 0 or self.select_every % self.log_every:
             raise ConfigError(f"select_every must be 0 or a positive multiple of log_every ({self.log_every}), "
                               f"got {self.select_every}")

@@ -198,6 +198,17 @@ class TaskWindows:
     norm: TaskNorm
     histories: list[HistoryWindows]
     fingerprint: list[list[str | int]]
+    target: str = "action"
+    """What the model learns to predict: the history's ``action``, or (expert distillation on every
+    row) the ``demonstrator_action`` it stores."""
+
+    @property
+    def rows(self) -> str:
+        """Which rows train it and on what target, in words (printed at the start of training)."""
+        if self.target == "demonstrator_action":
+            return "every row, target the demonstrator's action"
+        whole = all(h.steps == h.history.num_steps for h in self.histories)
+        return "every row, target the executed action" if whole else "noise-free tail, target the executed action"
 
     @property
     def steps(self) -> int:
@@ -226,6 +237,12 @@ class TrainingData:
         """One hash of every task's history files: stored in checkpoints to say what they were trained on."""
         text = json.dumps({t.name: t.fingerprint for t in self.tasks}, sort_keys=True)
         return hashlib.sha1(text.encode()).hexdigest()
+
+
+def _learns_demonstrator_actions(histories: Sequence[LearningHistory], expert_distillation: bool,
+                                 expert_rows: str) -> bool:
+    """Expert distillation on every row: only where each history stores the demonstrator's actions."""
+    return expert_distillation and expert_rows == "auto" and all(h.has_demonstrator_action for h in histories)
 
 
 def _tail_fraction(task: TaskData, expert_distillation: bool, expert_tail_fraction: float | None) -> float | None:
@@ -265,6 +282,7 @@ def load_training_data(
     expert_distillation: bool = False,
     expert_tail_fraction: float | None = None,
     stats_cache_dir: str | os.PathLike[str] | None = None,
+    expert_rows: str = "auto",
 ) -> TrainingData:
     """Index a dataset root for training: registry groups, reward scales, cached obs statistics.
 
@@ -272,7 +290,9 @@ def load_training_data(
     train split; empty = every task with histories). The dataset's other registry tasks in the same
     groups get observation statistics only (`TrainingData.held_out`). The reward scale is the task
     JSON's ``reward_scale`` when it has one (the data says how it was recorded), else the registry's;
-    the group always comes from the registry.
+    the group always comes from the registry. Expert distillation (see `TrainConfig.expert_rows`)
+    learns the stored demonstrator actions on every row of a task whose histories all have them,
+    else the executed actions of the noise-free tail.
     """
     root = Path(root)
     # Every folder must be a registry task, or its split (train or held out) would be a guess.
@@ -289,10 +309,12 @@ def load_training_data(
     windows = []
     for task, spec in specs:
         histories = _histories(task)
-        tail = _tail_fraction(task, expert_distillation, expert_tail_fraction)
+        relabel = _learns_demonstrator_actions(histories, expert_distillation, expert_rows)
+        tail = None if relabel else _tail_fraction(task, expert_distillation, expert_tail_fraction)
         windows.append(TaskWindows(spec.name, spec.group, _task_norm(task, spec, histories, cache_dir),
                                    [HistoryWindows(h, usable_bounds(h, tail)) for h in histories],
-                                   task_fingerprint(task.history_paths)))
+                                   task_fingerprint(task.history_paths),
+                                   "demonstrator_action" if relabel else "action"))
     held_out_norms = [_task_norm(task, spec, _histories(task), cache_dir) for task, spec in held_out]
     names = [n.task for n in [w.norm for w in windows] + held_out_norms]
     if len(set(names)) != len(names):
@@ -390,7 +412,7 @@ class WindowDataset(torch.utils.data.Dataset):
             # Only the first segment can start mid-episode; then read one row earlier for the true
             # previous action/reward. Later segments start episodes, where the model pads.
             first = lo - 1 if n == 0 and offset > 0 else lo
-            rows = history.history.read(first, hi)
+            rows = history.history.read(first, hi, demonstrator_action=task.target == "demonstrator_action")
             skip = lo - first
             act, rew = rows["action"], rows["reward"]
             prev_act = act[:-1] if skip else np.concatenate([np.zeros_like(act[:1]), act[:-1]])
@@ -399,7 +421,8 @@ class WindowDataset(torch.utils.data.Dataset):
             parts["prev_action"].append(prev_act)
             parts["prev_reward"].append(prev_rew)
             parts["step_num"].append(rows["step_num"][skip:].astype(np.int64))
-            parts["action"].append(act[skip:])
+            # The context always holds the actions that were executed; the target may be the demonstrator's.
+            parts["action"].append(rows[task.target][skip:])
         window: Window = {key: np.concatenate(value) for key, value in parts.items()}
         window.update(task_idx=t, group=task.group)
         return window

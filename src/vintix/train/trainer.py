@@ -293,7 +293,8 @@ class Trainer:
         if not self.dist.is_main:
             self.dist.barrier()
         data = load_training_data(self.config.data, self.config.tasks, self.config.expert_distillation,
-                                  self.config.expert_tail_fraction, self.config.stats_cache_dir)
+                                  self.config.expert_tail_fraction, self.config.stats_cache_dir,
+                                  self.config.expert_rows)
         if self.dist.is_main:
             self.dist.barrier()
         return data
@@ -403,6 +404,8 @@ class Trainer:
             where = f"resuming from {self.resumed_from}" if self.resumed_from else "starting fresh"
             print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
                   f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device}; {where} at step {self.step}")
+            if cfg.expert_distillation:
+                print("expert distillation: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
         # Per group: summed window loss, windows, training FLOPs since the last log line.
         sums = torch.zeros(len(groups), 3, dtype=torch.float64, device=self.device)
         progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train", disable=not self.dist.is_main,
