@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import spearmanr
 
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
+from vintix.collect.bench import benchmark_collection
 from vintix.data import LearningHistory, read_task_metadata, validate_dataset
 from vintix.demonstrators import ScriptedMetaWorldDemonstrator
 from vintix.tasks import make_env
@@ -86,6 +87,23 @@ def test_same_seed_same_bytes_other_seed_other_data(tmp_path):
     assert filecmp.cmp(tmp_path / "a" / name, tmp_path / "b" / name, shallow=False)
     with LearningHistory(tmp_path / "a" / name) as a, LearningHistory(tmp_path / "c" / name) as c:
         assert not np.array_equal(a.read(0, 300)["action"], c.read(0, 300)["action"])
+
+
+def test_histories_do_not_depend_on_how_many_steps_are_buffered(tmp_path, monkeypatch):
+    plan = CollectionPlan("InvertedPendulum-v5", histories=2, steps=250, envs_per_batch=2)
+    collect(plan, tmp_path / "default")
+    monkeypatch.setattr("vintix.collect.collector.BLOCK_STEPS", 7)  # blocks that straddle episodes and the end
+    collect(plan, tmp_path / "small-blocks")
+    for name in ["history-0000.h5", "history-0001.h5"]:
+        assert filecmp.cmp(tmp_path / "default/mujoco/InvertedPendulum-v5" / name,
+                           tmp_path / "small-blocks/mujoco/InvertedPendulum-v5" / name, shallow=False)
+
+
+def test_collection_benchmark_replays_what_it_collected():
+    [result] = benchmark_collection(["InvertedPendulum-v5"], steps=400, envs_per_batch=4, repeats=1)
+    assert result.task == "InvertedPendulum-v5" and result.envs_per_batch == 4
+    assert result.raw_steps_per_s > 0 and result.collect_steps_per_s > 0
+    assert result.ratio == result.collect_steps_per_s / result.raw_steps_per_s
 
 
 def test_interrupted_collection_resumes_to_identical_files(tmp_path):

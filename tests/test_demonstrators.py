@@ -88,6 +88,16 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path):
     assert not state.exists()
 
 
+@pytest.mark.parametrize("task", ["InvertedPendulum-v5", "Swimmer-v5", "Hopper-v5", "industrial-benchmark-40-v1"])
+def test_demonstrator_acts_exactly_like_sb3_predict(task):
+    """PPO (clipped Gaussian mean), PPO behind VecNormalize, SAC (squashed): the fast path changes nothing."""
+    demonstrator = load_demonstrator(task)
+    env = make_env(task, seed=0)
+    observations = np.stack([env.reset()[0]] + [env.observation_space.sample() for _ in range(7)])
+    expected, _ = demonstrator.policy.predict(demonstrator.normalize(observations), deterministic=True)
+    np.testing.assert_array_equal(demonstrator.act(observations, [env] * 8), expected)
+
+
 def test_industrial_benchmark_policy_normalizes_observations_like_its_training():
     demonstrator = load_demonstrator("industrial-benchmark-50-v1")
     assert demonstrator.metadata["env_options"] == {"reward_type": "delta"}

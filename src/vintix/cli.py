@@ -141,7 +141,7 @@ def collect(
     steps: Annotated[int, typer.Option(help="steps per history for --task")] = 10_000,
     curvature: Annotated[float, typer.Option(help="noise schedule curvature p for --task")] = 1.0,
     noise_free_fraction: Annotated[float, typer.Option(help="noise-free tail fraction f for --task")] = 0.05,
-    envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 4,
+    envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 16,
     seed: int = 0,
     workers: Annotated[int, typer.Option(help="processes (one per core)")] = 1,
 ) -> None:
@@ -390,6 +390,46 @@ def bench_train(
     console.print(table)
     console.print("parameters: one encoder/head per group of all 102 registry tasks; paper preset "
                   f"{parameter_count('paper'):,} (paper: 332,100,768)")
+
+
+DEFAULT_COLLECT_BENCH_TASKS = ["InvertedPendulum-v5", "Hopper-v5", "HalfCheetah-v5", "industrial-benchmark-40-v1"]
+
+
+@bench_app.command("collect")
+def bench_collect(
+    task_names: Annotated[Optional[list[str]], typer.Argument(
+        metavar="[TASKS]...", help="tasks (default: InvertedPendulum, Hopper, HalfCheetah, IB p=40)")] = None,
+    steps: Annotated[int, typer.Option(min=1, help="env steps per measurement")] = 20_000,
+    envs_per_batch: Annotated[Optional[int], typer.Option(
+        min=1, help="histories stepped together (default: the collector's)")] = None,
+    repeats: Annotated[int, typer.Option(min=1, help="alternating raw/collector measurements; medians kept")] = 3,
+) -> None:
+    """Collector steps/s against the raw env's, each in one process, measured side by side."""
+    import dataclasses
+    import os
+
+    import torch
+
+    from vintix.collect import CollectionPlan
+    from vintix.collect.bench import benchmark_collection
+    from vintix.demonstrators import load_demonstrator
+
+    torch.set_num_threads(1)  # one process per core, as `vintix collect --workers` runs
+    batch = envs_per_batch or next(f.default for f in dataclasses.fields(CollectionPlan) if f.name == "envs_per_batch")
+    try:
+        specs = _runnable_tasks(task_names or DEFAULT_COLLECT_BENCH_TASKS)
+        for spec in specs:
+            load_demonstrator(spec.name)  # a task without one fails before any timing
+    except VintixError as error:
+        raise _fail(error)
+    results = benchmark_collection([s.name for s in specs], steps, batch, repeats)
+    table = Table(title=f"collection speed in one process, {batch} histories per batch, median of {repeats} "
+                        f"(load average {os.getloadavg()[0]:.2f})")
+    for column in ("task", "raw env steps/s", "collector steps/s", "collector / raw"):
+        table.add_column(column, justify="left" if column == "task" else "right")
+    for r in results:
+        table.add_row(r.task, f"{r.raw_steps_per_s:,.0f}", f"{r.collect_steps_per_s:,.0f}", f"{r.ratio:.2f}")
+    console.print(table)
 
 
 @bench_app.command("infer")

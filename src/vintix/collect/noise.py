@@ -40,9 +40,7 @@ class NoiseSchedule:
         return np.where(progress <= 1, (1 - np.clip(progress, 0, 1) ** p) ** (1 / p), 0.0)
 
 
-def mix_action(expert: np.ndarray, epsilon: float, rng: np.random.Generator,
-               low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """`(1 − ε)·expert + ε·u` with u ~ Uniform(low, high); the expert action is clipped to the bounds
-    first, so the blend (a convex combination) stays inside them."""
-    noise = rng.uniform(low, high)
-    return (1 - epsilon) * np.clip(expert, low, high) + epsilon * noise
+def mix_action(expert: np.ndarray, epsilon: float, noise: np.ndarray) -> np.ndarray:
+    """`(1 − ε)·expert + ε·u` for `noise` u drawn uniformly inside the action bounds; with the expert
+    action inside them too, the blend (a convex combination) stays inside."""
+    return (1 - epsilon) * expert + epsilon * noise

@@ -1,0 +1,81 @@
+"""``vintix bench collect``: the collector's steps/s against the raw simulator's, on the same work.
+
+The collector rate is `collect_batch` in one process: demonstrator, noise, bookkeeping and writing
+the HDF5 files included. The raw rate is the env alone replaying what was collected: each history's
+actions fed to a fresh env of the same seed, reset where the history starts its episodes, nothing
+else. Both do the same steps and the same resets (random play ends Hopper episodes every ~20
+steps, a demonstrator's last 1,000, so a random-action rate would measure another workload). Their
+ratio is the share of the simulator's speed the collector keeps. Collecting and replaying alternate
+`repeats` times and each keeps its median, so a load that comes and goes touches both alike.
+"""
+
+from __future__ import annotations
+
+import statistics
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vintix.collect.collector import CollectionPlan, collect_batch
+from vintix.data import LearningHistory
+from vintix.demonstrators import load_demonstrator
+from vintix.tasks import get_task, make_env
+
+
+@dataclass(frozen=True)
+class CollectBenchmark:
+    """One task's measured collection and raw env speed."""
+
+    task: str
+    envs_per_batch: int
+    raw_steps_per_s: float
+    collect_steps_per_s: float
+
+    @property
+    def ratio(self) -> float:
+        """Collector speed as a fraction of the raw env speed."""
+        return self.collect_steps_per_s / self.raw_steps_per_s
+
+
+def replay_seconds(task: str, history: Path) -> float:
+    """Seconds the env alone takes to replay a history: its actions, its episode starts, its env seed."""
+    with LearningHistory(history) as stored:
+        rows, env_seed = stored.read(0, stored.num_steps), stored.env_seed
+    env = make_env(task, seed=env_seed)
+    ends = np.append(rows["step_num"][1:] == 0, False)  # reset after the last step of each episode
+    start = time.perf_counter()
+    env.reset()
+    for action, end in zip(rows["action"], ends):
+        env.step(action)
+        if end:
+            env.reset()
+    seconds = time.perf_counter() - start
+    env.close()
+    return seconds
+
+
+def measure_once(task: str, steps: int, envs_per_batch: int) -> tuple[float, float]:
+    """(raw, collector) steps/s of one `collect_batch` of `envs_per_batch` histories and its replay."""
+    plan = CollectionPlan(task, histories=envs_per_batch, steps=max(1, steps // envs_per_batch),
+                          envs_per_batch=envs_per_batch)
+    demonstrator = load_demonstrator(task)  # loaded once, outside the timing, as a long collection would
+    with tempfile.TemporaryDirectory() as root:
+        start = time.perf_counter()
+        paths = collect_batch(plan, list(range(envs_per_batch)), Path(root), demonstrator)
+        collecting = time.perf_counter() - start
+        replaying = sum(replay_seconds(task, path) for path in paths)
+    total = plan.steps * envs_per_batch
+    return total / replaying, total / collecting
+
+
+def benchmark_collection(tasks: list[str], steps: int, envs_per_batch: int, repeats: int = 3) -> list[CollectBenchmark]:
+    """Raw and collector steps/s of each task, `repeats` times, medians kept."""
+    results = []
+    for task in tasks:
+        name = get_task(task).name
+        raw, collected = zip(*(measure_once(name, steps, envs_per_batch) for _ in range(repeats)))
+        results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), statistics.median(collected)))
+    return results
