@@ -33,7 +33,7 @@ test: $(INSTALLED)
 # Re-resolve dependencies from pyproject.toml into requirements.lock (needs the package index).
 lock:
 	rm -rf /tmp/vintix-lock && $(PYTHON) -m venv /tmp/vintix-lock
-	/tmp/vintix-lock/bin/pip install --quiet torch==2.13.0 -e '.[dev]'
+	/tmp/vintix-lock/bin/pip install --quiet torch==2.13.0 -e '.[dev,cluster]'
 	/tmp/vintix-lock/bin/pip install --quiet --no-deps industrial-benchmark-python==2.0
 	{ sed -n '1,/^torch==/p' requirements.lock | sed '$$d'; \
 	  /tmp/vintix-lock/bin/pip freeze --exclude-editable | sed 's/^torch==\(.*\)+cpu/torch==\1/'; } > requirements.lock.new

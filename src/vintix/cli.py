@@ -42,6 +42,8 @@ demonstrator_app = typer.Typer(help="Train and score the experts that learning h
 app.add_typer(demonstrator_app, name="demonstrator")
 bench_app = typer.Typer(help="Speed benchmarks (not tests): training and inference throughput.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
+_RAY_HELP = ("spread the work over a Ray cluster: 'auto' (the running one, else a local instance) or its address, "
+             "e.g. host:6379 or ray://host:10001; needs pip install 'vintix[cluster]'")
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
 console = Console(width=None if sys.stdout.isatty() else 160)
 
@@ -144,6 +146,7 @@ def collect(
     envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 16,
     seed: int = 0,
     workers: Annotated[int, typer.Option(help="processes (one per core)")] = 1,
+    ray: Annotated[Optional[str], typer.Option(help=_RAY_HELP)] = None,
 ) -> None:
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
     import time
@@ -158,7 +161,7 @@ def collect(
         plans = load_recipe(recipe) if recipe else [CollectionPlan(
             task, histories, steps, NoiseSchedule(curvature, noise_free_fraction), seed, envs_per_batch)]
         start = time.perf_counter()
-        summaries = collect_histories(plans, out, workers=workers)
+        summaries = collect_histories(plans, out, workers=workers, ray=ray)
     except (VintixError, ValueError, FileNotFoundError, NotImplementedError) as error:
         raise _fail(error)
     seconds = time.perf_counter() - start
@@ -500,6 +503,7 @@ def eval_command(
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
                                          "tiny ops that a second thread slows down on a busy machine")] = 1,
+    ray: Annotated[Optional[str], typer.Option(help=_RAY_HELP)] = None,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
@@ -518,7 +522,7 @@ def eval_command(
         checkpoint = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(checkpoint, device)
         with Progress(console=console) as progress:
-            rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress)
+            rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress, ray)
         summary = summarize(rows, reference)
     except (VintixError, ValueError) as error:
         raise _fail(error)

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from vintix import cluster
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.demonstrators import Demonstrator, load_demonstrator
@@ -221,14 +222,17 @@ def _collect_batch_in_worker(args: tuple[CollectionPlan, list[int], Path, Demons
 
 
 def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, workers: int = 1,
-            demonstrator: Demonstrator | None = None) -> list[HistorySummary]:
+            demonstrator: Demonstrator | None = None, ray: str | None = None) -> list[HistorySummary]:
     """Collect every missing history of `plans` under `root`, spreading batches of all tasks over
-    `workers` processes; returns a summary of every history of the plans. `demonstrator` (one task
-    only) defaults to the project's demonstrator of each task."""
+    `workers` processes, or over the Ray cluster at address `ray` ("auto": see `vintix.cluster.connect`);
+    returns a summary of every history of the plans. `demonstrator` (one task only) defaults to the
+    project's demonstrator of each task."""
     plans = [plans] if isinstance(plans, CollectionPlan) else list(plans)
     root = Path(root)
     if workers < 1:
         raise CollectionError(f"workers must be >= 1, got {workers}")
+    if ray is not None:
+        cluster.connect(ray)  # a missing Ray or an unreachable cluster fails before anything is written
     jobs = []
     for plan in plans:
         spec = get_task(plan.task)
@@ -241,7 +245,9 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
                             noise_free_fraction=plan.schedule.noise_free_fraction)
         jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)
                  if not all(history_path(root, spec, i).exists() for i in indices)]
-    if workers > 1 and len(jobs) > 1:
+    if ray is not None:
+        _collect_on_ray(jobs, root)
+    elif workers > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             list(pool.map(_collect_batch_in_worker, [(*job, n % workers) for n, job in enumerate(jobs)]))
     else:
@@ -250,6 +256,20 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
     fresh = {history_path(root, get_task(plan.task), i) for plan, indices, *_ in jobs for i in indices}
     paths = [history_path(root, get_task(plan.task), i) for plan in plans for i in range(plan.histories)]
     return [summarize_history(path, collected_now=path in fresh) for path in paths]
+
+
+def _collect_on_ray(jobs: list[tuple[CollectionPlan, list[int], Path, Demonstrator | None]], root: Path) -> None:
+    """One Ray task per batch, each writing its files under `root` as a local worker would. Workers on
+    other machines write to their own disks unless `root` is a shared filesystem: said here, not left
+    to a missing-file error in the summary."""
+    calls = [((plan, indices, root.absolute(), demonstrator, 0),) for plan, indices, _, demonstrator in jobs]
+    for _ in cluster.map_tasks(_collect_batch_in_worker, calls, "history batches"):
+        pass
+    missing = [path for plan, indices, *_ in jobs for path in (history_path(root, get_task(plan.task), i) for i in indices)
+               if not path.exists()]
+    if missing:
+        raise CollectionError(f"Ray workers wrote {len(missing)} histories that this machine cannot see under {root} "
+                              f"(e.g. {missing[0]}): --out must be a folder every node of the cluster shares")
 
 
 def summarize_history(path: Path, collected_now: bool) -> HistorySummary:

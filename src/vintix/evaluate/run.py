@@ -16,7 +16,7 @@ import io
 import json
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ import numpy as np
 import torch
 from rich.progress import Progress
 
+from vintix import cluster
 from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.data.hdf5 import LearningHistory, find_tasks
@@ -201,39 +202,65 @@ def play_shots(agent: Agent, envs: Sequence[Any], shots: int, progress: Progress
 
 
 def run_episodes(
-    agent: Agent, config: EvalConfig, specs: Sequence[TaskSpec], progress: Progress | None = None
+    agent: Agent, config: EvalConfig, specs: Sequence[TaskSpec], progress: Progress | None = None,
+    ray: str | None = None, checkpoint: str = "",
 ) -> list[dict[str, Any]]:
-    """Every (task, seed) run of `config` for `specs`: one result row per episode."""
+    """Every (task, seed) run of `config` for `specs`: one result row per episode. Runs go in batches of
+    `config.batch_envs`, one after another through `agent`, or, given a Ray address `ray`, one Ray task
+    per batch, each loading the model from `checkpoint` itself; rows come back in the same order."""
     runs = [(spec, config.first_seed + i) for spec in specs for i in range(config.seeds)]
     prompt_steps = config.prompt_steps or agent.model.config.context_len // 2
+    batches = [runs[start : start + config.batch_envs] for start in range(0, len(runs), config.batch_envs)]
+    if ray is None:
+        return [row for batch in batches for row in run_batch(agent, config, batch, prompt_steps, progress)]
+    if not checkpoint or agent.device.type != "cpu":
+        raise VintixError("evaluating on Ray needs the model's checkpoint folder (each worker loads the model itself) "
+                          f"and the cpu device (a worker has one CPU and no GPU); got {checkpoint!r} on {agent.device}")
+    cluster.connect(ray)
+    # Workers may run in another folder: paths that exist here go absolute (a shipped model's name stays
+    # a name), and each uses the driver's thread count, so that a batch computes exactly what it would here.
+    source = str(Path(checkpoint).absolute()) if Path(checkpoint).exists() else checkpoint
+    config = replace(config, prompt_from=config.prompt_from and config.prompt_from.absolute())
+    calls = [(source, torch.get_num_threads(), config, batch, prompt_steps) for batch in batches]
+    by_batch = dict(cluster.map_tasks(_run_batch_in_worker, calls, "evaluation batches", progress))
+    return [row for index in range(len(batches)) for row in by_batch[index]]
+
+
+def _run_batch_in_worker(checkpoint: str, threads: int, config: EvalConfig, batch: list[tuple[TaskSpec, int]],
+                         prompt_steps: int) -> list[dict[str, Any]]:
+    """One batch of runs in a Ray worker, with a model loaded there (a model object would travel
+    pickled with every task; the checkpoint folder is a path)."""
+    torch.set_num_threads(threads)
+    return run_batch(Agent.from_pretrained(checkpoint), config, batch, prompt_steps)
+
+
+def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]], prompt_steps: int,
+              progress: Progress | None = None) -> list[dict[str, Any]]:
+    """The (task, seed) runs of `batch`, stepped together through `agent`: one result row per episode."""
     variation = ",".join(f"{k}={v:g}" for k, v in sorted(config.variation.items()))
-    rows = []
-    for start in range(0, len(runs), config.batch_envs):
-        batch = runs[start : start + config.batch_envs]
-        prompts = None
-        if config.prompt_from is not None:
-            prompts = [load_prompt(config.prompt_from, spec.name, seed - config.first_seed, prompt_steps)
-                       for spec, seed in batch]
-            batch = [(spec, seed if p.env_seed is None else p.env_seed) for (spec, seed), p in zip(batch, prompts)]
-        envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
-        try:
-            agent.reset([spec.name for spec, _ in batch], [env.action_space for env in envs])
-            tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
-            if prompts is not None:
-                agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
-            results = play_shots(agent, envs, config.shots, progress)
-        finally:
-            for env in envs:
-                env.close()
-        for (spec, seed), task, episodes in zip(batch, tasks, results):
-            rows += [
-                {"task": spec.name, "domain": spec.domain, "split": spec.split, "group": spec.group, "seed": seed,
-                 "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
-                 "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
-                 "success": "" if e.success is None else e.success}
-                for shot, e in enumerate(episodes)
-            ]
-    return rows
+    prompts = None
+    if config.prompt_from is not None:
+        prompts = [load_prompt(config.prompt_from, spec.name, seed - config.first_seed, prompt_steps)
+                   for spec, seed in batch]
+        batch = [(spec, seed if p.env_seed is None else p.env_seed) for (spec, seed), p in zip(batch, prompts)]
+    envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
+    try:
+        agent.reset([spec.name for spec, _ in batch], [env.action_space for env in envs])
+        tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
+        if prompts is not None:
+            agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
+        results = play_shots(agent, envs, config.shots, progress)
+    finally:
+        for env in envs:
+            env.close()
+    return [
+        {"task": spec.name, "domain": spec.domain, "split": spec.split, "group": spec.group, "seed": seed,
+         "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
+         "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
+         "success": "" if e.success is None else e.success}
+        for (spec, seed), task, episodes in zip(batch, tasks, results)
+        for shot, e in enumerate(episodes)
+    ]
 
 
 def references(tasks: Sequence[str]) -> tuple[dict[str, dict[str, Reference | None]], list[str]]:
@@ -274,16 +301,17 @@ def default_label(checkpoint: str) -> str:
 
 def evaluate(
     agent: Agent, config: EvalConfig, out: Path | None = None, checkpoint: str = "", label: str | None = None,
-    progress: Progress | None = None,
+    progress: Progress | None = None, ray: str | None = None,
 ) -> tuple[list[dict[str, Any]], list[str]]:
-    """Run `config` with `agent`; write the results under `out` if given. Returns the episode rows
+    """Run `config` with `agent` (on the Ray cluster at address `ray` if given, where workers load
+    `checkpoint`: see `run_episodes`); write the results under `out` if given. Returns the episode rows
     and notes (skipped tasks, missing references) for the user."""
     if out is not None:
         check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
     specs, notes = select_tasks(config.tasks, list(agent.model.groups))
     refs, missing = references([s.name for s in specs])
     started = time.time()
-    rows = run_episodes(agent, config, specs, progress)
+    rows = run_episodes(agent, config, specs, progress, ray, checkpoint)
     add_normalized_scores(rows, refs)
     if out is not None:
         model = agent.model

@@ -1,0 +1,83 @@
+"""Optional Ray fan-out for `vintix collect --ray` and `vintix eval --ray`.
+
+Both commands already split their work into independent, reproducible units (a batch of histories,
+a batch of evaluation runs); this module only ships those units to Ray workers, one CPU each, and
+hands the results back as they finish, so a cluster gives the same files and rows as local
+processes. Ray is an optional extra (``pip install 'vintix[cluster]'``): it is imported here, on
+first use, never when vintix is imported.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import nullcontext
+from types import ModuleType
+from typing import Any, TypeVar
+
+from rich.progress import Progress
+
+from vintix.errors import MissingDependencyError
+
+INSTALL = "pip install 'vintix[cluster]'"
+# Workers' own progress bars reach the driver as log lines, which would bury the driver's bar;
+# tqdm reads TQDM_* variables when it is imported, so they are set for each worker process.
+WORKER_ENV = {"env_vars": {"TQDM_DISABLE": "1"}}
+
+R = TypeVar("R")
+
+
+def import_ray() -> ModuleType:
+    """The `ray` module, or an error that says how to install it (it is an optional extra)."""
+    try:
+        import ray
+    except ImportError:
+        raise MissingDependencyError(
+            f"--ray needs Ray, which is not installed here: {INSTALL} (on every node of the cluster, with the "
+            "versions of requirements.lock)") from None
+    return ray
+
+
+def connect(address: str) -> None:
+    """Attach this process to a Ray cluster, unless it already is (a test or a notebook connected first).
+
+    ``"auto"`` is ``ray.init()`` with no address, not Ray's own ``address="auto"``: it joins the cluster
+    that ``RAY_ADDRESS`` or the latest ``ray start`` on this machine names, and where there is none it
+    starts a local Ray instance (a laptop), where Ray's ``"auto"`` would fail. Anything else
+    (``host:6379``, ``ray://host:10001``) must be a running cluster.
+    """
+    ray = import_ray()
+    if not ray.is_initialized():
+        ray.init(address=None if address == "auto" else address)
+
+
+def map_tasks(function: Callable[..., R], calls: Sequence[tuple[Any, ...]], description: str,
+              progress: Progress | None = None) -> Iterator[tuple[int, R]]:
+    """``function(*call)`` for every call, each a Ray task of one CPU on the connected cluster; yields
+    ``(index of the call, result)`` in the order tasks finish, so callers that need the calls' order
+    restore it by index. A bar (added to `progress`, or shown on its own) advances as tasks finish.
+    A task's error is raised as the error it raised in the worker; tasks still pending are cancelled."""
+    ray = import_ray()
+    remote = ray.remote(function).options(num_cpus=1, runtime_env=WORKER_ENV)
+    pending = {remote.remote(*call): index for index, call in enumerate(calls)}
+    with nullcontext(progress) if progress is not None else Progress() as shown:
+        bar = shown.add_task(description, total=len(pending))
+        try:
+            while pending:
+                [ready], _ = ray.wait(list(pending), num_returns=1)
+                index, result = pending.pop(ready), _result(ray, ready)
+                shown.advance(bar)
+                yield index, result
+        finally:
+            for ref in pending:
+                ray.cancel(ref)
+
+
+def _result(ray: ModuleType, ref: Any) -> Any:
+    """The task's value; a task that raised re-raises its own error (a VintixError stays one, with
+    its message), chained to Ray's error, which carries the worker's traceback."""
+    try:
+        return ray.get(ref)
+    except ray.exceptions.RayTaskError as error:
+        if isinstance(error.cause, Exception):
+            raise error.cause from error
+        raise

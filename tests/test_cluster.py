@@ -1,0 +1,68 @@
+"""`--ray`: collection and evaluation fanned out as Ray tasks, on a local Ray instance, give what the
+same commands give in local processes; without Ray installed, `--ray` says how to install it."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from vintix.cli import app
+from vintix.data import LearningHistory
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray instance for the module (starting one takes seconds); `--ray auto` joins it."""
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False)
+    yield
+    ray.shutdown()
+
+
+def test_collection_on_ray_equals_the_local_collection(tmp_path, local_ray):
+    common = ["collect", "--task", "reach-v3", "--histories", "3", "--steps", "300", "--envs-per-batch", "1"]
+    local = runner.invoke(app, [*common, "--out", str(tmp_path / "local")])
+    on_ray = runner.invoke(app, [*common, "--ray", "auto", "--out", str(tmp_path / "ray")])  # 3 batches: 3 Ray tasks
+    assert local.exit_code == 0, local.output
+    assert on_ray.exit_code == 0, on_ray.output
+    assert f"wrote 3 histories (900 steps) under {tmp_path / 'ray'}" in on_ray.output
+    task = "metaworld/reach-v3"
+    assert (tmp_path / "ray" / task / "reach-v3.json").read_text() == (tmp_path / "local" / task / "reach-v3.json").read_text()
+    for index in range(3):
+        name = f"{task}/history-{index:04d}.h5"
+        with LearningHistory(tmp_path / "local" / name) as local, LearningHistory(tmp_path / "ray" / name) as on_ray:
+            assert on_ray.attrs == local.attrs and on_ray.num_steps == local.num_steps == 300
+            expected, got = local.read(0, 300), on_ray.read(0, 300)
+            assert got.keys() == expected.keys()
+            for key in expected:
+                np.testing.assert_array_equal(got[key], expected[key], err_msg=f"{name} {key}")
+
+
+def test_evaluation_on_ray_writes_the_local_episodes(tmp_path, local_ray):
+    common = ["eval", "--checkpoint", "cpu-suite", "--tasks", "reach-v3,Reacher-v5", "--shots", "2", "--seeds", "2",
+              "--batch-envs", "1"]  # four runs, one a batch: four Ray tasks
+    local = runner.invoke(app, [*common, "--out", str(tmp_path / "local")])
+    on_ray = runner.invoke(app, [*common, "--ray", "auto", "--out", str(tmp_path / "ray")])
+    assert local.exit_code == 0, local.output
+    assert on_ray.exit_code == 0, on_ray.output
+    assert f"wrote 8 episodes to {tmp_path / 'ray' / 'episodes.csv'}" in on_ray.output
+    episodes = (tmp_path / "ray" / "episodes.csv").read_text()
+    assert episodes == (tmp_path / "local" / "episodes.csv").read_text()
+    assert len({line.split(",")[4] for line in episodes.splitlines()[1:]}) == 2  # both seeds, in the local order
+
+
+@pytest.mark.parametrize("command", [
+    ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "100"],
+    ["eval", "--checkpoint", "cpu-suite", "--tasks", "reach-v3", "--shots", "1", "--seeds", "1"],
+])
+def test_ray_without_ray_installed_says_how_to_install_it_before_any_work(tmp_path, monkeypatch, command):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` now fails as it does where Ray is not installed
+    result = runner.invoke(app, [*command, "--ray", "auto", "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    assert "pip install 'vintix[cluster]'" in result.output
+    assert not (tmp_path / "out").exists()
