@@ -1,9 +1,11 @@
-"""Figure-3-style plots of a collected dataset."""
+"""Figure-3-style plots of a collected dataset, and the smoothness criterion over the same curves."""
 
 import numpy as np
 
 from vintix.collect import CollectionPlan, collect
-from vintix.data.plot import normalized_curve, plot_dataset
+from vintix.data import LearningHistoryWriter, task_directory, write_task_metadata
+from vintix.data.plot import normalized_curve, plot_dataset, smoothness
+from vintix.evaluate.scores import reference
 
 
 def test_normalized_curve_spreads_each_episode_over_its_steps():
@@ -29,3 +31,26 @@ def test_plot_skips_tasks_without_a_reference_in_the_chosen_table(tmp_path):
         '{"task_name": "my-own-task", "observation_shape": {"proprio": [39]}, "action_dim": 4, '
         '"action_type": "continuous"}')
     assert plot_dataset(tmp_path / "data", tmp_path / "figs", bins=10, reference_table="paper") == ([], ["my-own-task"])
+
+
+def write_history_with_returns(path, returns, episode_len=10):
+    """A reach-v3-shaped history whose episodes return exactly `returns`."""
+    n = len(returns) * episode_len
+    with LearningHistoryWriter(path, 39, 4) as writer:
+        writer.append(np.zeros((n, 39)), np.zeros((n, 4)), np.repeat(np.asarray(returns) / episode_len, episode_len),
+                      np.tile(np.arange(episode_len), len(returns)))
+
+
+def test_smoothness_tells_a_steady_rise_from_a_jump(tmp_path):
+    ref = reference("reach-v3", "ours")
+    folder = task_directory(tmp_path, "metaworld", "reach-v3")
+    write_task_metadata(folder, "reach-v3", 39, 4)
+    ramp = ref.random + (ref.expert - ref.random) * np.linspace(0, 1, 21)  # the last episode is dropped (cut short)
+    write_history_with_returns(folder / "history-0000.h5", ramp)
+    [steady], skipped = smoothness(tmp_path, bins=10)
+    assert skipped == [] and steady.histories == 1
+    assert abs(steady.rank_correlation - 1.0) < 1e-9 and abs(steady.largest_jump - 0.1) < 0.01 and steady.smooth()
+    assert abs(steady.start - 0.025) < 1e-6 and abs(steady.end - 0.925) < 1e-6  # two episodes per bin
+    write_history_with_returns(folder / "history-0001.h5", [ref.random] * 10 + [ref.expert] * 11)
+    [worst], _ = smoothness(tmp_path, bins=10)
+    assert worst.histories == 2 and abs(worst.largest_jump - 1.0) < 1e-6 and not worst.smooth()

@@ -7,20 +7,30 @@ long the episodes are (a 30k-step Swimmer history has only 30 episodes). A task'
 over its histories; a domain's is the IQM over all the histories of its tasks, so every history
 weighs the same. The reference table is ours by default (our demonstrators' measured returns: the
 paper's are from other env versions), or the paper's.
+
+The same curves give the smoothness criterion a noise schedule is chosen by (`smoothness`): a
+history should rise steadily (rank correlation of return with position) and without abrupt jumps
+(largest change between neighbouring bins), which the paper's linear decay often fails.
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
-from scipy.stats import trim_mean
+from scipy.stats import spearmanr, trim_mean
 
 from vintix.atomic import atomic_path
 from vintix.data.hdf5 import LearningHistory, PathLike, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
+
+SMOOTH_CORRELATION = 0.9
+"""A smooth history's return rises with its position: Spearman correlation at least this, over the bins."""
+SMOOTH_JUMP = 0.3
+"""...and no neighbouring bins differ by more than this much normalized return (an abrupt jump)."""
 
 
 def normalized_curve(episode_returns: np.ndarray, episode_lengths: np.ndarray, random: float, expert: float,
@@ -54,15 +64,14 @@ def _plot(curves: dict[str, np.ndarray], title: str, path: Path) -> Path:
     return path
 
 
-def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table: str = "ours") -> tuple[list[Path], list[str]]:
-    """One PNG per task and one per domain under `out`, normalized by `reference_table` ('ours' or
-    'paper'). Returns the figures and the tasks skipped: unknown to the registry, or without a
-    reference in the table."""
+def task_curves(root: PathLike, bins: int, reference_table: str = "ours"
+                ) -> tuple[dict[str, dict[str, np.ndarray]], list[str]]:
+    """Domain -> task -> normalized curves of its histories ([histories, bins]), and the tasks skipped:
+    unknown to the registry, or without a reference in `reference_table` ('ours' or 'paper')."""
     from vintix.evaluate.scores import reference
 
     if bins < 1:
         raise VintixError(f"bins must be >= 1, got {bins}")
-    out = Path(out)
     by_domain: dict[str, dict[str, np.ndarray]] = defaultdict(dict)
     skipped = []
     for task in find_tasks(root):
@@ -82,6 +91,14 @@ def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table:
                     returns, lengths = returns[:-1], lengths[:-1]
                 curves.append(normalized_curve(returns, lengths, scores.random, scores.expert, bins))
         by_domain[task.domain][task.task_name] = np.array(curves)
+    return by_domain, skipped
+
+
+def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table: str = "ours") -> tuple[list[Path], list[str]]:
+    """One PNG per task and one per domain under `out`, normalized by `reference_table` ('ours' or
+    'paper'). Returns the figures and the tasks skipped (see `task_curves`)."""
+    by_domain, skipped = task_curves(root, bins, reference_table)
+    out = Path(out)
     written = []
     for domain, tasks in sorted(by_domain.items()):
         for name, curves in sorted(tasks.items()):
@@ -89,3 +106,38 @@ def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table:
         written.append(_plot({domain: np.concatenate(list(tasks.values()))},
                              f"{domain}: {len(tasks)} tasks", out / f"{domain}.png"))
     return written, skipped
+
+
+@dataclass(frozen=True)
+class Smoothness:
+    """How smoothly one task's histories rise from random to demonstrator level (worst history shown)."""
+
+    task: str
+    histories: int
+    rank_correlation: float
+    """Lowest, over histories, Spearman correlation of the normalized return with the position in the
+    history (1: it only ever rises)."""
+    largest_jump: float
+    """Largest change of normalized return between neighbouring bins of any history (a linear rise
+    over 10 bins moves about 0.1 per bin)."""
+    start: float
+    """Mean normalized return of the first bin (random play: about 0)."""
+    end: float
+    """Mean normalized return of the last bin (the demonstrator: about 1)."""
+
+    def smooth(self, min_correlation: float = SMOOTH_CORRELATION, max_jump: float = SMOOTH_JUMP) -> bool:
+        return self.rank_correlation >= min_correlation and self.largest_jump <= max_jump
+
+
+def smoothness(root: PathLike, bins: int = 10, reference_table: str = "ours") -> tuple[list[Smoothness], list[str]]:
+    """The smoothness criterion of every task of a dataset (see `Smoothness`), and the tasks skipped."""
+    by_domain, skipped = task_curves(root, bins, reference_table)
+    results = []
+    for tasks in by_domain.values():
+        for name, curves in sorted(tasks.items()):
+            position = np.arange(bins)
+            correlations = [spearmanr(position, curve).statistic for curve in curves]
+            results.append(Smoothness(name, len(curves), float(np.nanmin(correlations)),
+                                      float(np.nanmax(np.abs(np.diff(curves, axis=1)))),
+                                      float(np.nanmean(curves[:, 0])), float(np.nanmean(curves[:, -1]))))
+    return results, skipped
