@@ -7,7 +7,7 @@ import io
 import json
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
 from rich.console import Console
@@ -19,6 +19,9 @@ from typer.core import TyperGroup
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, get_task, list_tasks, resolve_tasks
+
+if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
+    from vintix.collect import CollectionPlan
 
 
 class _Commands(TyperGroup):
@@ -136,7 +139,8 @@ def check_envs(
 
 @app.command()
 def collect(
-    out: Annotated[Path, typer.Option(help="dataset root to write <domain>/<task>/history-NNNN.h5 under")],
+    out: Annotated[Optional[Path], typer.Option(help="dataset root to write <domain>/<task>/history-NNNN.h5 under "
+                                                "(not needed with --plan)")] = None,
     task: Annotated[Optional[str], typer.Option(help="one task (or use --recipe)")] = None,
     recipe: Annotated[Optional[str], typer.Option(help="a recipe YAML file, or a shipped one: tiny, metaworld-cpu")] = None,
     histories: Annotated[int, typer.Option(help="learning histories for --task")] = 1,
@@ -147,6 +151,10 @@ def collect(
     seed: int = 0,
     workers: Annotated[int, typer.Option(help="processes (one per core)")] = 1,
     ray: Annotated[Optional[str], typer.Option(help=_RAY_HELP)] = None,
+    plan: Annotated[bool, typer.Option("--plan", help="print what would be collected, its size on disk and the wall "
+                                       "time estimated from measured rates (for --workers), then stop")] = False,
+    rates: Annotated[Optional[Path], typer.Option(help="rates table for --plan (default: the package's, measured by "
+                                                  "`vintix bench collect`)")] = None,
 ) -> None:
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
     import time
@@ -160,6 +168,11 @@ def collect(
             raise VintixError("give exactly one of --task or --recipe")
         plans = load_recipe(recipe) if recipe else [CollectionPlan(
             task, histories, steps, NoiseSchedule(curvature, noise_free_fraction), seed, envs_per_batch)]
+        if plan:
+            _print_collection_plan(plans, workers, rates)
+            return
+        if out is None:
+            raise VintixError("give --out, the dataset root to collect into (or --plan to only see the plan)")
         start = time.perf_counter()
         summaries = collect_histories(plans, out, workers=workers, ray=ray)
     except (VintixError, ValueError, FileNotFoundError, NotImplementedError) as error:
@@ -176,6 +189,38 @@ def collect(
     speed = f", {new / seconds:,.0f} steps/s" if new else ""
     console.print(f"wrote {len(summaries)} histories ({sum(s.steps for s in summaries):,} steps) under {out}; "
                   f"this run collected {new:,} steps in {seconds:.1f} s{speed}")
+
+
+def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file: Optional[Path]) -> None:
+    """The `--plan` table: per task what would be collected and what it costs; totals and wall time."""
+    from vintix.collect.bench import read_rates
+    from vintix.collect.estimate import estimate_plans, wall_seconds
+
+    estimates = estimate_plans(plans, read_rates(rates_file))
+    table = Table(title=f"collection plan: {len(estimates)} tasks")
+    for column in ("task", "histories", "steps each", "steps", "batches", "disk", "steps/s", "core-hours"):
+        table.add_column(column, justify="left" if column == "task" else "right")
+    for e in estimates:
+        table.add_row(e.task, str(e.histories), f"{e.steps_per_history:,}", f"{e.steps:,}", str(len(e.batches)),
+                      _size(e.bytes), ("" if e.measured else "≈") + f"{e.steps_per_s:,.0f}",
+                      f"{sum(e.batch_seconds) / 3600:.2f}")
+    console.print(table)
+    steps = sum(e.steps for e in estimates)
+    core_hours = sum(sum(e.batch_seconds) for e in estimates) / 3600
+    console.print(f"total: {len(estimates)} tasks, {sum(e.histories for e in estimates):,} histories, {steps:,} steps, "
+                  f"{_size(sum(e.bytes for e in estimates))} on disk, {core_hours:.1f} core-hours; with --workers "
+                  f"{workers}: about {wall_seconds(estimates, workers) / 3600:.1f} h wall time")
+    estimated = [e.task for e in estimates if not e.measured]
+    if estimated:
+        console.print(f"≈: no demonstrator yet, so the rate is the raw env rate times the median collector/raw ratio: "
+                      f"{', '.join(estimated)}; train them first (`vintix demonstrator train --task TASK`)")
+
+
+def _size(n_bytes: int) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n_bytes >= scale:
+            return f"{n_bytes / scale:,.1f} {unit}"
+    return f"{n_bytes / 1e3:,.0f} kB"
 
 
 @demonstrator_app.command("train")
@@ -346,6 +391,32 @@ def data_plot(
     console.print(f"wrote {len(written)} figures under {out} (normalized by the '{reference}' random/expert scores)")
 
 
+@data_app.command("smoothness")
+def data_smoothness(
+    root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
+    bins: Annotated[int, typer.Option(min=2, help="bins along the history")] = 10,
+    reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
+) -> None:
+    """Does each task's return rise smoothly from random to demonstrator level? The criterion noise schedules are chosen by."""
+    from vintix.data.plot import SMOOTH_CORRELATION, SMOOTH_JUMP, smoothness
+
+    try:
+        results, skipped = smoothness(root, bins, reference)
+    except (VintixError, ValueError) as error:
+        raise _fail(error)
+    table = Table(title=f"smoothness over {bins} bins of each history (worst history per task; smooth: rank "
+                        f"correlation >= {SMOOTH_CORRELATION}, largest jump <= {SMOOTH_JUMP})")
+    for column in ("task", "histories", "rank correlation", "largest jump", "first bin", "last bin", "smooth"):
+        table.add_column(column, justify="left" if column == "task" else "right")
+    for r in results:
+        table.add_row(r.task, str(r.histories), f"{r.rank_correlation:.2f}", f"{r.largest_jump:.2f}", f"{r.start:.2f}",
+                      f"{r.end:.2f}", "yes" if r.smooth() else "[red]no[/red]")
+    console.print(table)
+    if skipped:
+        console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: {', '.join(skipped)}")
+    console.print(f"{sum(r.smooth() for r in results)} of {len(results)} tasks rise smoothly")
+
+
 @app.command("train")
 def train_command(
     config: Annotated[str, typer.Option(help="model preset (tiny, small, paper) or a YAML file of TrainConfig fields")] = "tiny",
@@ -406,23 +477,24 @@ def bench_collect(
     envs_per_batch: Annotated[Optional[int], typer.Option(
         min=1, help="histories stepped together (default: the collector's)")] = None,
     repeats: Annotated[int, typer.Option(min=1, help="alternating raw/collector measurements; medians kept")] = 3,
+    out: Annotated[Optional[Path], typer.Option(help="also write the rates as a CSV table (what --plan reads)")] = None,
 ) -> None:
-    """Collector steps/s against the raw env's, each in one process, measured side by side."""
+    """Collector steps/s against the raw env's, each in one process, measured side by side (tasks without
+    a demonstrator: uniform-random play's rate only)."""
     import dataclasses
     import os
 
     import torch
 
     from vintix.collect import CollectionPlan
-    from vintix.collect.bench import benchmark_collection
-    from vintix.demonstrators import load_demonstrator
+    from vintix.collect.bench import benchmark_collection, write_rates
 
     torch.set_num_threads(1)  # one process per core, as `vintix collect --workers` runs
     batch = envs_per_batch or next(f.default for f in dataclasses.fields(CollectionPlan) if f.name == "envs_per_batch")
     try:
         specs = _runnable_tasks(task_names or DEFAULT_COLLECT_BENCH_TASKS)
-        for spec in specs:
-            load_demonstrator(spec.name)  # a task without one fails before any timing
+        if out is not None:
+            check_output_path(out)
     except VintixError as error:
         raise _fail(error)
     results = benchmark_collection([s.name for s in specs], steps, batch, repeats)
@@ -431,8 +503,12 @@ def bench_collect(
     for column in ("task", "raw env steps/s", "collector steps/s", "collector / raw"):
         table.add_column(column, justify="left" if column == "task" else "right")
     for r in results:
-        table.add_row(r.task, f"{r.raw_steps_per_s:,.0f}", f"{r.collect_steps_per_s:,.0f}", f"{r.ratio:.2f}")
+        collected = "no demonstrator" if r.collect_steps_per_s is None else f"{r.collect_steps_per_s:,.0f}"
+        table.add_row(r.task, f"{r.raw_steps_per_s:,.0f}", collected, "" if r.ratio is None else f"{r.ratio:.2f}")
     console.print(table)
+    if out is not None:
+        command = "vintix bench collect " + " ".join(sys.argv[3:])
+        console.print(f"wrote {write_rates(results, out, command)}")
 
 
 @bench_app.command("infer")

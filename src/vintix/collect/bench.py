@@ -11,18 +11,28 @@ ratio is the share of the simulator's speed the collector keeps. Collecting and 
 
 from __future__ import annotations
 
+import csv
+import datetime
+import io
 import statistics
 import tempfile
 import time
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
+from vintix.atomic import atomic_write_text
 from vintix.collect.collector import CollectionPlan, collect_batch
 from vintix.data import LearningHistory
 from vintix.demonstrators import load_demonstrator
+from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
+
+
+RATES_FIELDS = ["task", "envs_per_batch", "raw_steps_per_s", "collect_steps_per_s", "measured_on", "command"]
 
 
 @dataclass(frozen=True)
@@ -32,12 +42,40 @@ class CollectBenchmark:
     task: str
     envs_per_batch: int
     raw_steps_per_s: float
-    collect_steps_per_s: float
+    collect_steps_per_s: float | None
+    """None for a task without a demonstrator: its raw rate is then uniform-random play's."""
 
     @property
-    def ratio(self) -> float:
+    def ratio(self) -> float | None:
         """Collector speed as a fraction of the raw env speed."""
-        return self.collect_steps_per_s / self.raw_steps_per_s
+        return None if self.collect_steps_per_s is None else self.collect_steps_per_s / self.raw_steps_per_s
+
+
+def rates_path() -> Path:
+    """The package's table of measured collection rates (what `vintix collect --plan` estimates from)."""
+    return Path(str(resources.files("vintix.collect").joinpath("rates.csv")))
+
+
+def write_rates(results: list[CollectBenchmark], path: Path, command: str) -> Path:
+    """The benchmark's results as a rates table (CSV), written atomically."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=RATES_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    today = datetime.date.today().isoformat()
+    for r in results:
+        writer.writerow({"task": r.task, "envs_per_batch": r.envs_per_batch, "raw_steps_per_s": round(r.raw_steps_per_s),
+                         "collect_steps_per_s": "" if r.collect_steps_per_s is None else round(r.collect_steps_per_s),
+                         "measured_on": today, "command": command})
+    atomic_write_text(path, buffer.getvalue())
+    return path
+
+
+def read_rates(path: Path | None = None) -> dict[str, CollectBenchmark]:
+    """Task -> measured rates, from `path` (default: the package's table)."""
+    with open(path or rates_path(), newline="") as file:
+        return {row["task"]: CollectBenchmark(row["task"], int(row["envs_per_batch"]), float(row["raw_steps_per_s"]),
+                                              float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
+                for row in csv.DictReader(file)}
 
 
 def replay_seconds(task: str, history: Path) -> float:
@@ -71,11 +109,41 @@ def measure_once(task: str, steps: int, envs_per_batch: int) -> tuple[float, flo
     return total / replaying, total / collecting
 
 
+def random_play_steps_per_second(task: str, steps: int, seed: int = 0) -> float:
+    """Env steps/s under uniform-random actions, resets included: the rate of a task with no
+    demonstrator to collect with yet."""
+    env = make_env(task, seed=seed)
+    actions = np.random.default_rng(seed).uniform(env.action_space.low, env.action_space.high,
+                                                  size=(steps, *env.action_space.shape)).astype(np.float32)
+    start = time.perf_counter()
+    env.reset()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    seconds = time.perf_counter() - start
+    env.close()
+    return steps / seconds
+
+
+def has_demonstrator(task: str) -> bool:
+    try:
+        load_demonstrator(task)
+    except VintixError:
+        return False
+    return True
+
+
 def benchmark_collection(tasks: list[str], steps: int, envs_per_batch: int, repeats: int = 3) -> list[CollectBenchmark]:
-    """Raw and collector steps/s of each task, `repeats` times, medians kept."""
+    """Raw and collector steps/s of each task, `repeats` times, medians kept; tasks without a
+    demonstrator get uniform-random play's rate only."""
     results = []
-    for task in tasks:
+    for task in tqdm(tasks, desc="tasks", disable=len(tasks) < 2):
         name = get_task(task).name
+        if not has_demonstrator(name):
+            raw = [random_play_steps_per_second(name, steps) for _ in range(repeats)]
+            results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), None))
+            continue
         raw, collected = zip(*(measure_once(name, steps, envs_per_batch) for _ in range(repeats)))
         results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), statistics.median(collected)))
     return results

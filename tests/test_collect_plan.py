@@ -1,0 +1,56 @@
+"""`vintix collect --plan`: size on disk, rates, and the wall time of batches spread over workers."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from vintix.cli import app
+from vintix.collect import CollectionPlan, collect
+from vintix.collect.bench import CollectBenchmark, read_rates
+from vintix.collect.estimate import TaskEstimate, collector_rate, estimate_plans, history_bytes, wall_seconds
+from vintix.collect.recipe import load_recipe
+from vintix.errors import VintixError
+from vintix.tasks import get_task
+
+
+@pytest.mark.parametrize("steps", [250, 1_000, 12_345])
+def test_disk_size_is_what_the_collector_writes(tmp_path, steps):
+    [summary] = collect(CollectionPlan("InvertedPendulum-v5", histories=1, steps=steps), tmp_path)
+    written = summary.path.stat().st_size
+    assert abs(history_bytes(get_task("InvertedPendulum-v5"), steps) - written) <= 0.02 * written + 2_000
+
+
+def test_batches_go_to_the_first_free_worker_in_submission_order():
+    tasks = [TaskEstimate("a", 3, 100, [1, 1, 1], 0, steps_per_s=10.0, measured=True),   # batches of 10 s
+             TaskEstimate("b", 1, 300, [1], 0, steps_per_s=10.0, measured=True)]          # one of 30 s
+    assert wall_seconds(tasks, workers=1) == 60
+    assert wall_seconds(tasks, workers=2) == 40  # worker 1: 10 + 10, then b; worker 2: 10
+    assert wall_seconds(tasks, workers=8) == 30
+    with pytest.raises(VintixError, match="workers must be >= 1, got 0"):
+        wall_seconds(tasks, workers=0)
+
+
+def test_a_task_without_a_demonstrator_is_estimated_from_its_raw_rate():
+    rates = {"InvertedPendulum-v5": CollectBenchmark("InvertedPendulum-v5", 5, 20_000, 10_000),
+             "Hopper-v5": CollectBenchmark("Hopper-v5", 5, 10_000, 8_000),
+             "Ant-v5": CollectBenchmark("Ant-v5", 5, 4_000, None)}
+    assert collector_rate("Hopper-v5", rates) == (8_000, True)
+    assert collector_rate("Ant-v5", rates) == (4_000 * 0.65, False)  # the median ratio of (0.5, 0.8)
+    with pytest.raises(VintixError, match="no measured rate for 'Walker2d-v5'.*vintix bench collect Walker2d-v5"):
+        collector_rate("Walker2d-v5", rates)
+
+
+def test_the_shipped_rates_cover_every_task_of_the_paper_recipe():
+    estimates = estimate_plans(load_recipe("paper"), read_rates())
+    assert len(estimates) == 72 and sum(e.steps for e in estimates) == 191_500_000
+    assert all(e.steps_per_s > 0 for e in estimates)
+
+
+def test_plan_prints_the_totals_and_collects_nothing(tmp_path):
+    result = CliRunner().invoke(app, ["collect", "--recipe", "paper", "--plan", "--workers", "16"])
+    assert result.exit_code == 0, result.output
+    assert "72 tasks, 1,015 histories, 191,500,000 steps" in result.output
+    assert "with --workers 16: about" in result.output
+    result = CliRunner().invoke(app, ["collect", "--task", "reach-v3"])
+    assert result.exit_code == 2 and "give --out" in result.output
