@@ -54,3 +54,8 @@ def test_smoothness_tells_a_steady_rise_from_a_jump(tmp_path):
     write_history_with_returns(folder / "history-0001.h5", [ref.random] * 10 + [ref.expert] * 11)
     [worst], _ = smoothness(tmp_path, bins=10)
     assert worst.histories == 2 and abs(worst.largest_jump - 1.0) < 1e-6 and not worst.smooth()
+    for path in folder.glob("*.h5"):
+        path.unlink()
+    write_history_with_returns(folder / "history-0000.h5", ramp / 2 + ref.expert / 2)  # starts halfway: rises 0.45
+    [halfway], _ = smoothness(tmp_path, bins=10)
+    assert halfway.rank_correlation > 0.99 and halfway.largest_jump < 0.06 and not halfway.smooth()

@@ -398,14 +398,15 @@ def data_smoothness(
     reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
 ) -> None:
     """Does each task's return rise smoothly from random to demonstrator level? The criterion noise schedules are chosen by."""
-    from vintix.data.plot import SMOOTH_CORRELATION, SMOOTH_JUMP, smoothness
+    from vintix.data.plot import SMOOTH_CORRELATION, SMOOTH_JUMP, SMOOTH_RISE, smoothness
 
     try:
         results, skipped = smoothness(root, bins, reference)
     except (VintixError, ValueError) as error:
         raise _fail(error)
     table = Table(title=f"smoothness over {bins} bins of each history (worst history per task; smooth: rank "
-                        f"correlation >= {SMOOTH_CORRELATION}, largest jump <= {SMOOTH_JUMP})")
+                        f"correlation >= {SMOOTH_CORRELATION}, largest jump <= {SMOOTH_JUMP}, last bin - first "
+                        f">= {SMOOTH_RISE})")
     for column in ("task", "histories", "rank correlation", "largest jump", "first bin", "last bin", "smooth"):
         table.add_column(column, justify="left" if column == "task" else "right")
     for r in results:

@@ -9,8 +9,9 @@ weighs the same. The reference table is ours by default (our demonstrators' meas
 paper's are from other env versions), or the paper's.
 
 The same curves give the smoothness criterion a noise schedule is chosen by (`smoothness`): a
-history should rise steadily (rank correlation of return with position) and without abrupt jumps
-(largest change between neighbouring bins), which the paper's linear decay often fails.
+history should rise steadily (rank correlation of return with position), without abrupt jumps
+(largest change between neighbouring bins) and all the way (first bin to last), which the paper's
+linear decay often fails.
 """
 
 from __future__ import annotations
@@ -30,7 +31,10 @@ from vintix.errors import UnknownTaskError, VintixError
 SMOOTH_CORRELATION = 0.9
 """A smooth history's return rises with its position: Spearman correlation at least this, over the bins."""
 SMOOTH_JUMP = 0.3
-"""...and no neighbouring bins differ by more than this much normalized return (an abrupt jump)."""
+"""...no neighbouring bins differ by more than this much normalized return (an abrupt jump)..."""
+SMOOTH_RISE = 0.6
+"""...and it rises at least this much from its first bin to its last (from near random to near the
+demonstrator: a schedule that drops the noise at once is steady but teaches no improvement)."""
 
 
 def normalized_curve(episode_returns: np.ndarray, episode_lengths: np.ndarray, random: float, expert: float,
@@ -125,8 +129,9 @@ class Smoothness:
     end: float
     """Mean normalized return of the last bin (the demonstrator: about 1)."""
 
-    def smooth(self, min_correlation: float = SMOOTH_CORRELATION, max_jump: float = SMOOTH_JUMP) -> bool:
-        return self.rank_correlation >= min_correlation and self.largest_jump <= max_jump
+    def smooth(self) -> bool:
+        return (self.rank_correlation >= SMOOTH_CORRELATION and self.largest_jump <= SMOOTH_JUMP
+                and self.end - self.start >= SMOOTH_RISE)
 
 
 def smoothness(root: PathLike, bins: int = 10, reference_table: str = "ours") -> tuple[list[Smoothness], list[str]]:
