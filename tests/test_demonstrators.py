@@ -89,13 +89,15 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path):
 
 
 @pytest.mark.parametrize("task", ["InvertedPendulum-v5", "Swimmer-v5", "Hopper-v5", "industrial-benchmark-40-v1"])
-def test_demonstrator_acts_exactly_like_sb3_predict(task):
-    """PPO (clipped Gaussian mean), PPO behind VecNormalize, SAC (squashed): the fast path changes nothing."""
+def test_demonstrator_acts_like_sb3_predict(task):
+    """PPO (clipped Gaussian mean), PPO behind VecNormalize, SAC (squashed): the numpy forward gives
+    SB3's actions up to float32 rounding."""
     demonstrator = load_demonstrator(task)
+    assert demonstrator._mlp is not None  # the fast path, not predict
     env = make_env(task, seed=0)
-    observations = np.stack([env.reset()[0]] + [env.observation_space.sample() for _ in range(7)])
+    observations = np.stack([env.reset()[0]] + [np.clip(env.observation_space.sample(), -5, 5) for _ in range(7)])
     expected, _ = demonstrator.policy.predict(demonstrator.normalize(observations), deterministic=True)
-    np.testing.assert_array_equal(demonstrator.act(observations, [env] * 8), expected)
+    np.testing.assert_allclose(demonstrator.act(observations, [env] * 8), expected, rtol=1e-5, atol=1e-5)
 
 
 def test_industrial_benchmark_policy_normalizes_observations_like_its_training():

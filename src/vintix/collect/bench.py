@@ -3,8 +3,8 @@
 The collector rate is `collect_batch` in one process: demonstrator, noise, bookkeeping and writing
 the HDF5 files included. The raw rate is the env alone replaying what was collected: each history's
 actions fed to a fresh env of the same seed, reset where the history starts its episodes, nothing
-else. Both do the same steps and the same resets (random play ends Hopper episodes every ~20
-steps, a demonstrator's last 1,000, so a random-action rate would measure another workload). Their
+else. Both make the same envs and do the same steps and resets (random play ends Hopper episodes
+every ~20 steps, a demonstrator's last 1,000, so a random-action rate would measure another workload). Their
 ratio is the share of the simulator's speed the collector keeps. Collecting and replaying alternate
 `repeats` times and each keeps its median, so a load that comes and goes touches both alike.
 """
@@ -79,12 +79,13 @@ def read_rates(path: Path | None = None) -> dict[str, CollectBenchmark]:
 
 
 def replay_seconds(task: str, history: Path) -> float:
-    """Seconds the env alone takes to replay a history: its actions, its episode starts, its env seed."""
+    """Seconds the env alone takes to replay a history: made with its env seed (making it is timed, as
+    the collector's is), then its actions, reset where its episodes start."""
     with LearningHistory(history) as stored:
         rows, env_seed = stored.read(0, stored.num_steps), stored.env_seed
-    env = make_env(task, seed=env_seed)
     ends = np.append(rows["step_num"][1:] == 0, False)  # reset after the last step of each episode
     start = time.perf_counter()
+    env = make_env(task, seed=env_seed)
     env.reset()
     for action, end in zip(rows["action"], ends):
         env.step(action)

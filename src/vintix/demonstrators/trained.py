@@ -12,7 +12,7 @@ Benchmark policy serves all 21 setpoints (the setpoint is part of its observatio
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -93,7 +93,8 @@ class TrainedDemonstrator:
         self.obs_mean, self.obs_var = tensors.pop(OBS_MEAN, None), tensors.pop(OBS_VAR, None)
         _inference_module(self.policy).load_state_dict(tensors)
         self.policy.set_training_mode(False)
-        self._deterministic_actor = deterministic_actor(self.policy)
+        modules = deterministic_actor(self.policy)
+        self._mlp = None if modules is None else NumpyMlp.from_modules(modules)
 
     def normalize(self, observations: np.ndarray) -> np.ndarray:
         """What `VecNormalize.normalize_obs` did during training, from the saved statistics."""
@@ -104,27 +105,57 @@ class TrainedDemonstrator:
         return np.clip(scaled, -settings["clip"], settings["clip"]).astype(np.float32)
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
-        """What ``policy.predict(..., deterministic=True)`` returns, through the policy's own modules
-        but without the distribution objects and the training-mode reset predict makes on every
-        call: those took longer than the MLP itself, and most of a collection step."""
-        net = self._deterministic_actor
-        if net is None:
+        """What ``policy.predict(..., deterministic=True)`` returns (up to float32 rounding), computed by
+        `NumpyMlp` from the policy's own weights: predict re-sets the training mode of every module and
+        builds a distribution object on each call, and torch's per-op dispatch alone took longer than
+        the simulator's step in a collection loop."""
+        if self._mlp is None:
             actions, _ = self.policy.predict(self.normalize(np.asarray(observations)), deterministic=True)
             return actions
-        observation = torch.as_tensor(np.asarray(self.normalize(np.asarray(observations)), dtype=np.float32))
-        with torch.no_grad():
-            actions = net(observation).numpy()
+        actions = self._mlp(np.asarray(self.normalize(np.asarray(observations)), dtype=np.float32))
         if self.policy.squash_output:  # tanh-squashed policies act in [-1, 1]
             return self.policy.unscale_action(actions)
         space = self.policy.action_space
         return np.clip(actions, space.low, space.high)
 
 
-def deterministic_actor(policy: BasePolicy) -> torch.nn.Module | None:
-    """The modules that map a (normalized, flat) observation to the policy's deterministic action:
-    SAC's mean squashed by tanh, PPO's Gaussian mean; None for other policies (predict serves them)."""
+def deterministic_actor(policy: BasePolicy) -> list[torch.nn.Module] | None:
+    """The modules, in order, that map a (normalized, flat) observation to the policy's deterministic
+    action: SAC's mean squashed by tanh, PPO's Gaussian mean; None for other policies."""
     if isinstance(policy, SACPolicy) and not policy.actor.use_sde:
-        return torch.nn.Sequential(policy.actor.latent_pi, policy.actor.mu, torch.nn.Tanh())
+        return [*policy.actor.latent_pi, policy.actor.mu, torch.nn.Tanh()]
     if isinstance(policy, ActorCriticPolicy) and isinstance(policy.action_dist, DiagGaussianDistribution):
-        return torch.nn.Sequential(policy.mlp_extractor.policy_net, policy.action_net)
+        return [*policy.mlp_extractor.policy_net, policy.action_net]
     return None
+
+
+class NumpyMlp:
+    """A stack of Linear / Tanh / ReLU modules evaluated with numpy in float32.
+
+    In a collection step the demonstrator runs once per batch between the envs' steps, with cold
+    caches: a 2-layer MLP of 64 units took 156 µs per call through torch and 32 µs through numpy,
+    HalfCheetah's 256-unit one 238 µs and 138 µs (16 observations, this 2-core CPU).
+    """
+
+    ACTIVATIONS = {torch.nn.Tanh: np.tanh, torch.nn.ReLU: lambda x: np.maximum(x, 0)}
+
+    def __init__(self, layers: list[tuple[np.ndarray, np.ndarray] | Callable[[np.ndarray], np.ndarray]]) -> None:
+        self.layers = layers
+
+    @classmethod
+    def from_modules(cls, modules: Sequence[torch.nn.Module]) -> NumpyMlp | None:
+        """The same function as `modules` applied in turn; None if one is not Linear, Tanh or ReLU."""
+        layers: list[tuple[np.ndarray, np.ndarray] | Callable[[np.ndarray], np.ndarray]] = []
+        for module in modules:
+            if isinstance(module, torch.nn.Linear) and module.bias is not None:
+                layers.append((module.weight.detach().numpy().T.copy(), module.bias.detach().numpy().copy()))
+            elif type(module) in cls.ACTIVATIONS:
+                layers.append(cls.ACTIVATIONS[type(module)])
+            else:
+                return None
+        return cls(layers)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        for layer in self.layers:
+            x = x @ layer[0] + layer[1] if isinstance(layer, tuple) else layer(x)
+        return x
