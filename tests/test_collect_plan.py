@@ -47,6 +47,16 @@ def test_the_shipped_rates_cover_every_task_of_the_paper_recipe():
     assert all(e.steps_per_s > 0 for e in estimates)
 
 
+@pytest.mark.parametrize("content", [None, "task,speed\nreach-v3,fast\n", "task,envs_per_batch,raw_steps_per_s,"
+                                     "collect_steps_per_s\nreach-v3,5,many,\n"])
+def test_a_missing_or_damaged_rates_table_is_named(tmp_path, content):
+    path = tmp_path / "rates.csv"
+    if content is not None:
+        path.write_text(content)
+    result = CliRunner().invoke(app, ["collect", "--recipe", "tiny", "--plan", "--rates", str(path)])
+    assert result.exit_code == 2 and "not a readable rates table" in result.output and "--out" in result.output
+
+
 def test_plan_prints_the_totals_and_collects_nothing(tmp_path):
     result = CliRunner().invoke(app, ["collect", "--recipe", "paper", "--plan", "--workers", "16"])
     assert result.exit_code == 0, result.output

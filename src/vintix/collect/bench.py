@@ -72,10 +72,16 @@ def write_rates(results: list[CollectBenchmark], path: Path, command: str) -> Pa
 
 def read_rates(path: Path | None = None) -> dict[str, CollectBenchmark]:
     """Task -> measured rates, from `path` (default: the package's table)."""
-    with open(path or rates_path(), newline="") as file:
-        return {row["task"]: CollectBenchmark(row["task"], int(row["envs_per_batch"]), float(row["raw_steps_per_s"]),
-                                              float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
-                for row in csv.DictReader(file)}
+    path = path or rates_path()
+    try:
+        with open(path, newline="") as file:
+            return {row["task"]: CollectBenchmark(row["task"], int(row["envs_per_batch"]),
+                                                  float(row["raw_steps_per_s"]),
+                                                  float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
+                    for row in csv.DictReader(file)}
+    except (OSError, UnicodeDecodeError, KeyError, TypeError, ValueError) as error:
+        raise VintixError(f"{path}: not a readable rates table ({type(error).__name__}: {error}); it needs the columns "
+                          f"{RATES_FIELDS[:4]}: write one with `vintix bench collect TASKS --out {path}`") from error
 
 
 def replay_seconds(task: str, history: Path) -> float:
