@@ -284,7 +284,24 @@ def unchecksummed_copy(folder: Path) -> None:
                 f[name].create_dataset(key, data=data)
 
 
+def add_demonstrator_actions(nan_row: int | None = None, groups: int | None = None) -> Callable[[Path], None]:
+    """Give history-0000 a demonstrator_action dataset (a copy of its actions) in its first `groups`
+    groups (default all), with a NaN at `nan_row` of the first."""
+    def damage(folder: Path) -> None:
+        with h5py.File(folder / "history-0000.h5", "r+") as f:
+            for name in sorted(f, key=lambda g: int(g.split("-")[0]))[:groups]:
+                proposed = f[name]["action"][()]
+                if nan_row is not None and name == "0-127":
+                    proposed[nan_row] = np.nan
+                f[name].create_dataset("demonstrator_action", data=proposed)
+
+    return damage
+
+
 DATA.update({
+    "nan-demonstrator-action": damaged_data("nan-demonstrator-action", add_demonstrator_actions(nan_row=41)),
+    "demonstrator-action-in-one-group": damaged_data("demonstrator-action-in-one-group",
+                                                     add_demonstrator_actions(groups=1)),
     "discrete-json": damaged_data("discrete-json", rewrite_json(lambda m: m.update(action_type="discrete"))),
     "text-dims-json": damaged_data("text-dims-json", rewrite_json(lambda m: m.update(action_dim="4"))),
     "json-list": damaged_data("json-list", lambda f: (f / "reach-v3.json").write_text("[1, 2]")),
@@ -468,6 +485,11 @@ cli_error("check-envs", "--out under a file", lambda: ["check-envs", "InvertedPe
           "not a directory")
 
 # Collection
+cli_error("collect", "--plan with a damaged rates table", lambda: [
+    "collect", "--recipe", "tiny", "--plan", "--rates", file_at("rates.csv", "task,speed\nreach-v3,fast\n")()],
+    "not a readable rates table")
+cli_error("collect", "--plan with --workers 0", ["collect", "--recipe", "paper", "--plan", "--workers", "0"],
+          "workers must be >= 1")
 cli_error("collect", "neither --task nor --recipe", lambda: ["collect", "--out", WORK / "c1"], "exactly one of --task")
 cli_error("collect", "both --task and --recipe", lambda: ["collect", "--task", "reach-v3", "--recipe", "tiny",
                                                           "--out", WORK / "c2"], "exactly one of --task")
@@ -583,7 +605,8 @@ DAMAGE_NAMES = {
     "foreign-entry": ("'notes' is not a step group",) * 2, "discrete-json": ("action_type",) * 2,
     "text-dims-json": ("action_dim must be a positive integer", None), "json-list": ("needs keys", None),
     "json-not-utf8": ("not valid JSON",) * 2, "float64-reward": ("reward is float64",) * 2,
-    "not-hdf5": ("history-0001.h5",) * 2,
+    "not-hdf5": ("history-0001.h5",) * 2, "nan-demonstrator-action": ("NaN/inf in demonstrator_action",) * 2,
+    "demonstrator-action-in-one-group": ("groups disagree on their demonstrator-action dataset",) * 2,
 }
 for damage, (needle, _) in DAMAGE_NAMES.items():
     cli_error("data", f"validate: {damage}", lambda d=damage: ["data", "validate", DATA[d]()], needle)
