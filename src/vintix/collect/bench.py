@@ -27,9 +27,10 @@ from tqdm import tqdm
 from vintix.atomic import atomic_write_text
 from vintix.collect.collector import CollectionPlan, collect_batch
 from vintix.data import LearningHistory
-from vintix.demonstrators import load_demonstrator
+from vintix.demonstrators import Demonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
+from vintix.tasks.check import random_policy_returns
 
 
 RATES_FIELDS = ["task", "envs_per_batch", "raw_steps_per_s", "collect_steps_per_s", "measured_on", "command"]
@@ -102,11 +103,11 @@ def replay_seconds(task: str, history: Path) -> float:
     return seconds
 
 
-def measure_once(task: str, steps: int, envs_per_batch: int) -> tuple[float, float]:
-    """(raw, collector) steps/s of one `collect_batch` of `envs_per_batch` histories and its replay."""
+def measure_once(task: str, steps: int, envs_per_batch: int, demonstrator: Demonstrator) -> tuple[float, float]:
+    """(raw, collector) steps/s of one `collect_batch` of `envs_per_batch` histories and its replay
+    (the demonstrator is loaded by the caller, outside the timing, as a long collection loads it once)."""
     plan = CollectionPlan(task, histories=envs_per_batch, steps=max(1, steps // envs_per_batch),
                           envs_per_batch=envs_per_batch)
-    demonstrator = load_demonstrator(task)  # loaded once, outside the timing, as a long collection would
     with tempfile.TemporaryDirectory() as root:
         start = time.perf_counter()
         paths = collect_batch(plan, list(range(envs_per_batch)), Path(root), demonstrator)
@@ -116,29 +117,11 @@ def measure_once(task: str, steps: int, envs_per_batch: int) -> tuple[float, flo
     return total / replaying, total / collecting
 
 
-def random_play_steps_per_second(task: str, steps: int, seed: int = 0) -> float:
-    """Env steps/s under uniform-random actions, resets included: the rate of a task with no
-    demonstrator to collect with yet."""
-    env = make_env(task, seed=seed)
-    actions = np.random.default_rng(seed).uniform(env.action_space.low, env.action_space.high,
-                                                  size=(steps, *env.action_space.shape)).astype(np.float32)
-    start = time.perf_counter()
-    env.reset()
-    for action in actions:
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            env.reset()
-    seconds = time.perf_counter() - start
-    env.close()
-    return steps / seconds
-
-
-def has_demonstrator(task: str) -> bool:
+def demonstrator_or_none(task: str) -> Demonstrator | None:
     try:
-        load_demonstrator(task)
+        return load_demonstrator(task)
     except VintixError:
-        return False
-    return True
+        return None
 
 
 def benchmark_collection(tasks: list[str], steps: int, envs_per_batch: int, repeats: int = 3) -> list[CollectBenchmark]:
@@ -146,11 +129,13 @@ def benchmark_collection(tasks: list[str], steps: int, envs_per_batch: int, repe
     demonstrator get uniform-random play's rate only."""
     results = []
     for task in tqdm(tasks, desc="tasks", disable=len(tasks) < 2):
-        name = get_task(task).name
-        if not has_demonstrator(name):
-            raw = [random_play_steps_per_second(name, steps) for _ in range(repeats)]
+        spec = get_task(task)
+        name, demonstrator = spec.name, demonstrator_or_none(spec.name)
+        if demonstrator is None:  # uniform-random play over about `steps` steps, as `vintix check-envs` times it
+            episodes = max(1, steps // spec.episode_length)
+            raw = [random_policy_returns(name, episodes).steps_per_second for _ in range(repeats)]
             results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), None))
             continue
-        raw, collected = zip(*(measure_once(name, steps, envs_per_batch) for _ in range(repeats)))
+        raw, collected = zip(*(measure_once(name, steps, envs_per_batch, demonstrator) for _ in range(repeats)))
         results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), statistics.median(collected)))
     return results
