@@ -86,6 +86,24 @@ def test_data_validate_on_an_empty_folder_says_what_to_point_at(tmp_path):
     assert result.exit_code == 2 and "dataset root" in result.output
 
 
+def test_fit_schedule_prints_recipe_lines_that_collect_accepts(tmp_path):
+    result = runner.invoke(app, ["collect", "--task", "InvertedPendulum-v5", "--histories", "2", "--steps", "4000",
+                                 "--out", str(tmp_path / "linear")])
+    assert result.exit_code == 0, result.output
+    result = runner.invoke(app, ["data", "fit-schedule", str(tmp_path / "linear"), "--knots", "5"])
+    assert result.exit_code == 0, result.output
+    [line] = [line for line in result.output.splitlines() if "{knots: [1, " in line]
+    (tmp_path / "fitted.yaml").write_text(f"defaults: {{histories: 1, steps: 2000}}\ntasks:\n{line}\n")
+    result = runner.invoke(app, ["collect", "--recipe", str(tmp_path / "fitted.yaml"), "--out", str(tmp_path / "fitted")])
+    assert result.exit_code == 0 and "wrote 1 histories" in result.output, result.output
+
+
+def test_fit_schedule_on_histories_without_a_recorded_schedule_names_the_file(tmp_path):
+    write_rollout_dataset(tmp_path)  # written directly, as published files are: no schedule attributes
+    result = runner.invoke(app, ["data", "fit-schedule", str(tmp_path)])
+    assert result.exit_code == 2 and "history_0.h5" in result.output and "records no noise schedule" in result.output
+
+
 def test_collect_a_shipped_recipe_then_rerun_collects_nothing(tmp_path):
     result = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output

@@ -124,13 +124,23 @@ def test_a_folder_finished_with_other_settings_is_refused_not_reported_as_done(t
     task_dir = tmp_path / "metaworld" / "reach-v3"
     before = {p.name: p.read_bytes() for p in task_dir.iterdir()}
     for other, difference in [(dict(steps=50), "steps 100 (now 50)"), (dict(seed=1), "collection_seed 0 (now 1)"),
-                              (dict(schedule=NoiseSchedule(curvature=2.0)), "curvature 1.0 (now 2.0)")]:
+                              (dict(schedule=NoiseSchedule(curvature=2.0)), "curvature 1.0 (now 2.0)"),
+                              (dict(schedule=NoiseSchedule(knots=[1.0, 0.5, 0.0])), "knots [] (now [1.0, 0.5, 0.0])")]:
         with pytest.raises(CollectionSettingsError, match="holds histories made with other settings") as error:
             collect(CollectionPlan("reach-v3", **{**dict(histories=2, steps=100, envs_per_batch=2), **other}), tmp_path)
         assert difference in str(error.value) and "history-0000.h5" in str(error.value)
     assert {p.name: p.read_bytes() for p in task_dir.iterdir()} == before  # JSON included: nothing rewritten
     again = collect(CollectionPlan("reach-v3", histories=3, steps=100, envs_per_batch=2), tmp_path)
     assert [s.collected_now for s in again] == [False, False, True]  # same settings: only the new one
+
+
+def test_a_folder_collected_with_knots_resumes_with_the_same_knots(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=100, schedule=NoiseSchedule(knots=[1.0, 0.2, 0.0]))
+    collect(plan, tmp_path)
+    [again] = collect(plan, tmp_path)  # the knots read back from the file match the plan's
+    assert not again.collected_now
+    with LearningHistory(again.path) as history:
+        np.testing.assert_array_equal(history.attrs["knots"], [1.0, 0.2, 0.0])
 
 
 @pytest.mark.parametrize(("settings", "message"), [

@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from vintix.collect import NoiseSchedule, mix_action
+from vintix.collect import CollectionPlan, NoiseSchedule, collect, mix_action
+from vintix.collect.calibrate import fit_schedules
+from vintix.collect.noise import fit_knots
 
 
 def test_epsilon_starts_at_one_and_reaches_zero_at_the_noise_free_tail():
@@ -28,10 +30,46 @@ def test_a_noise_free_fraction_of_one_is_the_demonstrator_alone():
     assert not NoiseSchedule(noise_free_fraction=1.0).epsilon(np.arange(100), 100).any()
 
 
-@pytest.mark.parametrize("bad", [dict(curvature=0.0), dict(noise_free_fraction=1.1), dict(noise_free_fraction=-0.1)])
-def test_invalid_parameters_are_rejected(bad):
-    with pytest.raises(ValueError):
+def test_knots_replace_the_power_law_before_the_noise_free_tail():
+    schedule = NoiseSchedule(knots=[1.0, 0.4, 0.3, 0.0], noise_free_fraction=0.25)
+    # 75 noised steps, knots at progress 0, 1/3, 2/3 and 1 of them.
+    np.testing.assert_allclose(schedule.epsilon(np.array([0, 25, 50, 75, 99]), 100), [1.0, 0.4, 0.3, 0.0, 0.0])
+    assert schedule.knots == (1.0, 0.4, 0.3, 0.0)  # a YAML list becomes the frozen schedule's tuple
+    assert NoiseSchedule.from_recorded(schedule.recorded()) == schedule
+    assert "knots" not in NoiseSchedule().recorded()  # power-law histories record what they always did
+
+
+@pytest.mark.parametrize(("bad", "message"), [
+    (dict(curvature=0.0), "curvature p must be > 0"), (dict(noise_free_fraction=1.1), "must lie in"),
+    (dict(noise_free_fraction=-0.1), "must lie in"), (dict(knots=[1.0, 0.5]), "fall from 1 to 0"),
+    (dict(knots=[1.0, 0.3, 0.4, 0.0]), "never rising"), (dict(knots=[1.0]), "at least two"),
+    (dict(knots=[1.0, 0.0], curvature=2.0), "not both"), (dict(knots=["high", 0.0]), "knots must be tuple"),
+])
+def test_invalid_parameters_are_rejected(bad, message):
+    with pytest.raises(ValueError, match=message):
         NoiseSchedule(**bad)
+
+
+def test_fitted_knots_spend_the_history_where_return_changes():
+    rng = np.random.default_rng(0)
+    epsilons, steps = rng.uniform(0, 1, 400), np.full(400, 100)
+    threshold = (epsilons < 0.3 + rng.normal(0, 0.03, 400)).astype(float)  # balances below ε ≈ 0.3, falls above
+    knots = fit_knots(epsilons, 5 * threshold - 2, steps)  # any affine scale of return fits the same
+    assert knots[0] == 1.0 and knots[-1] == 0.0 and np.all(np.diff(knots) <= 0)
+    assert all(0.2 < k < 0.4 for k in knots[1:-1])
+    ramp = fit_knots(epsilons, 1 - epsilons + rng.normal(0, 0.05, 400), steps)  # linear already: stays about linear
+    np.testing.assert_allclose(ramp, np.linspace(1, 0, 11), atol=0.06)
+    with pytest.raises(ValueError, match="does not fall with noise"):
+        fit_knots(epsilons, np.zeros(400), steps)
+
+
+def test_fit_schedules_reads_each_episode_noise_from_the_histories_of_a_real_collection(tmp_path):
+    collect(CollectionPlan("InvertedPendulum-v5", histories=2, steps=6000), tmp_path)
+    [fitted], skipped = fit_schedules(tmp_path)
+    assert skipped == [] and fitted.task == "InvertedPendulum-v5" and fitted.episodes > 20
+    assert fitted.knots[0] == 1.0 and fitted.knots[-1] == 0.0 and len(fitted.knots) == 11
+    # The pendulum falls at once above some noise: the middle knots sit close together, not 0.1 apart.
+    assert fitted.knots[2] - fitted.knots[8] < 0.3
 
 
 def test_mixed_actions_stay_inside_the_bounds():

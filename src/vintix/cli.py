@@ -418,6 +418,32 @@ def data_smoothness(
     console.print(f"{sum(r.smooth() for r in results)} of {len(results)} tasks rise smoothly")
 
 
+@data_app.command("fit-schedule")
+def data_fit_schedule(
+    root: Annotated[Path, typer.Argument(help="dataset root collected by `vintix collect` (any schedule)")],
+    knots: Annotated[int, typer.Option(min=2, help="knots per schedule (11: one per tenth of the history)")] = 11,
+) -> None:
+    """Fit each task's noise schedule to its histories so the expected return rises linearly; prints recipe lines."""
+    from vintix.collect.calibrate import fit_schedules
+
+    try:
+        fitted, skipped = fit_schedules(root, knots)
+    except (VintixError, ValueError) as error:
+        raise _fail(error)
+    table = Table(title="noise schedule knots: ε at evenly spaced points of the noised history, placed so the "
+                        "expected return rises linearly (fitted to the episodes' returns at their mean ε)")
+    for column in ("task", "episodes", "knots"):
+        table.add_column(column, justify="left" if column != "episodes" else "right")
+    for f in fitted:
+        table.add_row(f.task, str(f.episodes), " ".join(f"{k:.3g}" for k in f.knots))
+    console.print(table)
+    for reason in skipped:
+        console.print(f"[red]no knots[/red] for {reason}")
+    if fitted:
+        console.print("recipe lines (under 'tasks:'; knots replace the curvature):")
+        print("\n".join(f"  {f.task}: {{knots: [{', '.join(f'{k:g}' for k in f.knots)}]}}" for f in fitted))
+
+
 @app.command("train")
 def train_command(
     config: Annotated[str, typer.Option(help="model preset (tiny, small, paper) or a YAML file of TrainConfig fields")] = "tiny",

@@ -43,11 +43,11 @@ def _coerce(value: Any, hint: Any) -> Any:
         return value if isinstance(value, str) else str(value) if isinstance(value, os.PathLike) else _INVALID
     if hint is Path:
         return Path(value) if isinstance(value, (str, os.PathLike)) else _INVALID
-    if origin is list:
+    if origin in (list, tuple):  # tuple[X, ...] only: a list of any length, kept as the annotation's type
         if not isinstance(value, (list, tuple)):
             return _INVALID
         items = [_coerce(item, args[0]) for item in value]
-        return _INVALID if any(item is _INVALID for item in items) else items
+        return _INVALID if any(item is _INVALID for item in items) else origin(items)
     if origin is dict:
         if not isinstance(value, dict):
             return _INVALID

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -66,11 +67,10 @@ class CollectionPlan:
             raise CollectionError(f"{self.task}: {', '.join(bad)}; histories, steps and envs_per_batch must be >= 1, "
                                   "seed >= 0")
 
-    def recorded_settings(self, index: int) -> dict[str, int | float]:
+    def recorded_settings(self, index: int) -> dict[str, Any]:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
         return {"env_seed": history_seeds(get_task(self.task).name, index, self.seed)[0], "collection_seed": self.seed,
-                "steps": self.steps, "curvature": self.schedule.curvature,
-                "noise_free_fraction": self.schedule.noise_free_fraction}
+                "steps": self.steps, **self.schedule.recorded()}
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,12 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
     with LearningHistory(path) as history:
         found = {**history.attrs, "steps": history.num_steps}
         differences = [] if history.has_demonstrator_action else ["no demonstrator actions (now stored)"]
-    return differences + [f"{key} {found[key]!r} (now {value!r})" for key, value in plan.recorded_settings(index).items()
+    recorded = plan.recorded_settings(index)
+    if "curvature" in found:  # a file of ours: one without knots was made by the power law
+        found = {key: np.ravel(value).tolist() if key == "knots" else value for key, value in found.items()}
+        found.setdefault("knots", [])
+        recorded.setdefault("knots", [])
+    return differences + [f"{key} {found[key]!r} (now {value!r})" for key, value in recorded.items()
                           if key in found and found[key] != value]
 
 

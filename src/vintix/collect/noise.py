@@ -7,22 +7,29 @@ from random to demonstrator level, a proxy of an RL learning history that AD can
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from scipy.optimize import isotonic_regression
 
 from vintix.fields import check_field_types
 
 
 @dataclass(frozen=True)
 class NoiseSchedule:
-    """ε(n) = (1 − (n / ((1 − f)·N))^p)^(1/p) for n ≤ (1 − f)·N, else 0."""
+    """ε(n) = (1 − (n / ((1 − f)·N))^p)^(1/p) for n ≤ (1 − f)·N, else 0; or, with `knots`, ε piecewise
+    linear through them over the same n ≤ (1 − f)·N."""
 
     curvature: float = 1.0
     """p: > 1 keeps ε high for longer, then drops it (for returns that rise early); < 1 the opposite."""
     noise_free_fraction: float = 0.0
     """f: the fraction of the history, at its end, played by the demonstrator alone (1: all of it,
     expert data for the expert-distillation baseline)."""
+    knots: tuple[float, ...] = ()
+    """ε at evenly spaced points of the noised part of the history, from 1 down to 0, instead of the
+    curvature (`fit_knots` places them so the expected return rises linearly); empty: the power law."""
 
     def __post_init__(self) -> None:
         check_field_types(self, ValueError)  # recipes are YAML: "fast" must not reach a comparison
@@ -30,17 +37,70 @@ class NoiseSchedule:
             raise ValueError(f"noise schedule curvature p must be > 0, got {self.curvature}")
         if not 0 <= self.noise_free_fraction <= 1:
             raise ValueError(f"noise_free_fraction f must lie in [0, 1], got {self.noise_free_fraction}")
+        if self.knots:
+            knots = np.asarray(self.knots, dtype=np.float64)
+            if len(knots) < 2 or knots[0] != 1 or knots[-1] != 0 or np.any(np.diff(knots) > 0):
+                raise ValueError(f"noise schedule knots must fall from 1 to 0 (at least two, never rising), "
+                                 f"got {list(self.knots)}")
+            if self.curvature != 1:
+                raise ValueError("give noise schedule knots or a curvature, not both (knots replace the power law)")
 
     def epsilon(self, step: np.ndarray | int, total_steps: int) -> np.ndarray:
         """ε at step index `step` (0-based) of a history of `total_steps` steps."""
         if self.noise_free_fraction == 1:
             return np.zeros(np.shape(step))
         progress = np.asarray(step, dtype=np.float64) / ((1 - self.noise_free_fraction) * total_steps)
-        p = self.curvature
-        return np.where(progress <= 1, (1 - np.clip(progress, 0, 1) ** p) ** (1 / p), 0.0)
+        clipped = np.clip(progress, 0, 1)
+        if self.knots:
+            noised = np.interp(clipped, np.linspace(0, 1, len(self.knots)), self.knots)
+        else:
+            p = self.curvature
+            noised = (1 - clipped ** p) ** (1 / p)
+        return np.where(progress <= 1, noised, 0.0)
+
+    def recorded(self) -> dict[str, Any]:
+        """The schedule as a history file records it (root attributes; knots only when it has them)."""
+        settings: dict[str, Any] = {"curvature": self.curvature, "noise_free_fraction": self.noise_free_fraction}
+        return settings | ({"knots": list(self.knots)} if self.knots else {})
+
+    @classmethod
+    def from_recorded(cls, attrs: Mapping[str, Any]) -> NoiseSchedule:
+        """The schedule a history file records (see `recorded`)."""
+        return cls(float(attrs["curvature"]), float(attrs["noise_free_fraction"]),
+                   tuple(float(k) for k in np.ravel(attrs.get("knots", []))))
 
 
 def mix_action(expert: np.ndarray, epsilon: float, noise: np.ndarray) -> np.ndarray:
     """`(1 − ε)·expert + ε·u` for `noise` u drawn uniformly inside the action bounds; with the expert
     action inside them too, the blend (a convex combination) stays inside."""
     return (1 - epsilon) * expert + epsilon * noise
+
+
+def fit_knots(epsilons: np.ndarray, returns: np.ndarray, steps: np.ndarray, count: int = 11,
+              groups: int = 20) -> tuple[float, ...]:
+    """Knots of a schedule whose expected return rises linearly from random to demonstrator level.
+
+    From episodes played at (mean) noise `epsilons` with `returns` over `steps` steps each: the
+    episodes, sorted by ε, are pooled into `groups` of about equal steps (so the fit is finest where
+    the data are densest, which a schedule fitted once makes near the ε where return changes); a
+    weighted isotonic fit makes return fall with ε; knot k is the ε where that fit reaches the
+    fraction k / (count − 1) of the way from its level at the most noise to its level at the least.
+    A task whose return jumps at some ε then spends most of its history near that ε.
+    """
+    if len(returns) == 0:
+        raise ValueError("no complete episode to fit knots to (histories shorter than an episode?)")
+    order = np.argsort(epsilons, kind="stable")
+    epsilons, returns, steps = (np.asarray(a, dtype=np.float64)[order] for a in (epsilons, returns, steps))
+    group = np.minimum((np.cumsum(steps) - steps) * groups // steps.sum(), groups - 1).astype(int)
+    weight = np.bincount(group, steps)
+    filled = weight > 0
+    centre = (np.bincount(group, steps * epsilons) / np.where(filled, weight, 1))[filled]
+    level = (np.bincount(group, steps * returns) / np.where(filled, weight, 1))[filled]
+    fitted = isotonic_regression(level, weights=weight[filled], increasing=False).x
+    if len(fitted) < 2 or fitted[0] <= fitted[-1]:
+        raise ValueError(f"return does not fall with noise in these {len(returns)} episodes: nothing to fit knots to")
+    targets = fitted[-1] + np.linspace(0, 1, count) * (fitted[0] - fitted[-1])
+    # np.interp needs rising x: walk the fit from most noise to least.
+    knots = np.interp(targets, fitted[::-1], centre[::-1])
+    knots[0], knots[-1] = 1.0, 0.0
+    return tuple(float(k) for k in np.round(np.minimum.accumulate(knots), 3))

@@ -8,6 +8,7 @@
     tasks:
       reach-v3: {}
       door-open-v3: {curvature: 2.0}
+      InvertedPendulum-v5: {knots: [1.0, 0.4, 0.3, 0.0]}   # see `vintix data fit-schedule`
       metaworld: {}      # a domain or split name expands to all its tasks
 
 Shipped recipes (`vintix collect --recipe NAME`): see `src/vintix/collect/recipes/`.
@@ -26,7 +27,7 @@ from vintix.collect.collector import CollectionError, CollectionPlan
 from vintix.collect.noise import NoiseSchedule
 from vintix.tasks import resolve_tasks
 
-SCHEDULE_KEYS = {"curvature", "noise_free_fraction"}
+SCHEDULE_KEYS = {f.name for f in dataclasses.fields(NoiseSchedule)}
 PLAN_KEYS = {f.name for f in dataclasses.fields(CollectionPlan)} - {"task", "schedule"}
 
 

@@ -285,7 +285,7 @@ class LearningHistoryWriter:
     """
 
     def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS,
-                 attrs: dict[str, int | float | str] | None = None, demonstrator_actions: bool = False) -> None:
+                 attrs: dict[str, int | float | str | list[float]] | None = None, demonstrator_actions: bool = False) -> None:
         self.path = Path(path)
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")

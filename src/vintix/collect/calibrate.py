@@ -1,0 +1,56 @@
+"""Fit each task's noise schedule to its own histories: spend the history where return changes with ε.
+
+A power-law schedule moves ε at the same pace everywhere, so a task whose return changes only over a
+narrow range of ε (a pendulum balances or falls) jumps there however the curvature is set. Histories
+collected by `vintix collect` record their schedule, so every episode can be paired with the mean ε
+it was played at; `fit_knots` turns those pairs into knots whose expected return rises linearly
+along the history. `vintix data fit-schedule ROOT` prints them as recipe lines.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vintix.collect.noise import NoiseSchedule, fit_knots
+from vintix.data.hdf5 import DatasetError, LearningHistory, PathLike, find_tasks
+
+
+@dataclass(frozen=True)
+class FittedSchedule:
+    """The knots fitted for one task, and how many episodes they rest on."""
+
+    task: str
+    episodes: int
+    knots: tuple[float, ...]
+
+
+def episode_noise(history: LearningHistory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean ε, return and length of each episode of a history, but the last (cut by the history's end)."""
+    attrs = history.attrs
+    if "curvature" not in attrs or "steps" not in attrs:
+        raise DatasetError(history.path, "records no noise schedule (it was not made by `vintix collect`), so the "
+                                         "noise its episodes were played at is unknown")
+    epsilon = NoiseSchedule.from_recorded(attrs).epsilon(np.arange(history.num_steps), int(attrs["steps"]))
+    starts = history.episode_starts
+    lengths = np.diff(np.append(starts, history.num_steps))
+    mean_epsilon = np.add.reduceat(epsilon, starts) / lengths
+    return mean_epsilon[:-1], history.episode_returns()[:-1], lengths[:-1]
+
+
+def fit_schedules(root: PathLike, count: int = 11) -> tuple[list[FittedSchedule], list[str]]:
+    """Knots for every task of a dataset, from all its histories together, and why any task has none."""
+    fitted, skipped = [], []
+    for task in find_tasks(root):
+        parts = []
+        for path in task.history_paths:
+            with LearningHistory(path) as history:
+                parts.append(episode_noise(history))
+        epsilons, returns, lengths = (np.concatenate([part[i] for part in parts]) if parts else np.empty(0)
+                                      for i in range(3))
+        try:
+            fitted.append(FittedSchedule(task.task_name, len(returns), fit_knots(epsilons, returns, lengths, count)))
+        except ValueError as error:
+            skipped.append(f"{task.task_name}: {error}")
+    return fitted, skipped
