@@ -514,6 +514,10 @@ for name, recipe, needle in [
     ("tasks is a list", "tasks: [reach-v3]\n", "non-empty 'tasks:' mapping"),
     ("task settings are a number", "tasks:\n  reach-v3: 5\n", "must be mappings"),
     ("unknown task", "tasks:\n  reech-v3: {}\n", "reech-v3"),
+    ("rising knots", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0.2, 0.5, 0]}\n", "never rising"),
+    ("knots and a curvature", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0], curvature: 2}\n",
+     "not both"),
+    ("knots are text", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: steep}\n", "knots must be"),
 ]:
     slug = name.replace(" ", "-")
     cli_error("collect", f"recipe: {name}", lambda r=recipe, f=f"{slug}.yaml": [
@@ -621,6 +625,10 @@ cli_error("data", "plot: zero bins", lambda: ["data", "plot", clean_data(), "--b
           "--bins")
 cli_error("data", "plot: corrupted block", lambda: ["data", "plot", DATA["corrupted-block"](), "--reference", "paper",
                                                     "--out", WORK / "figs1"], "failed its checksum")
+
+cli_error("data", "fit-schedule: histories without a recorded schedule", lambda: ["data", "fit-schedule", clean_data()],
+          "records no noise schedule")
+cli_error("data", "fit-schedule: one knot", lambda: ["data", "fit-schedule", clean_data(), "--knots", "1"], "--knots")
 
 
 def corrupted_block_read() -> object:
