@@ -4,6 +4,7 @@ import pytest
 
 from vintix.collect import CollectionError
 from vintix.collect.recipe import load_recipe
+from vintix.demonstrators.trained import weights_paths
 from vintix.tasks import get_task
 
 
@@ -18,6 +19,14 @@ def test_shipped_recipes_load():
     assert len(paper) == 72 and {get_task(t).split for t in paper} == {"train"}
     assert (paper["Humanoid-v5"].histories, paper["Humanoid-v5"].steps) == (15, 1_000_000)  # Appendix G
     assert sum(p.histories * p.steps for p in paper.values()) == 191_500_000
+
+
+def test_the_paper_recipe_has_fitted_knots_for_every_task_with_a_demonstrator():
+    """A demonstrator shipped without fitting its task's schedule would collect with plain linear decay."""
+    for plan in load_recipe("paper"):
+        spec = get_task(plan.task)
+        has_demonstrator = spec.domain == "metaworld" or weights_paths(spec.group)[1].is_file()
+        assert bool(plan.schedule.knots) == has_demonstrator, plan.task
 
 
 def test_domains_expand_and_task_settings_override_defaults(tmp_path):
