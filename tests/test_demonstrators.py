@@ -31,17 +31,20 @@ def small_recipe(task: str) -> DemonstratorRecipe:
                    hyperparameters={**recipe.hyperparameters, "n_steps": 64, "batch_size": 32, "n_epochs": 1})
 
 
-@pytest.mark.parametrize("task", ["Reacher-v5", "industrial-benchmark-35-v1"])  # SAC actor; PPO + VecNormalize
+@pytest.mark.parametrize("task", ["Reacher-v5", "Ant-v5", "industrial-benchmark-35-v1"])  # SAC; TD3; PPO + VecNormalize
 def test_trained_policy_round_trips_through_weights_only_files(tmp_path, task):
     path = train_demonstrator(task, timesteps=120, out=tmp_path, progress_bar=False, recipe=small_recipe(task))
     assert path.suffix == ".safetensors" and path.with_suffix(".json").is_file()
     demonstrator = TrainedDemonstrator(get_task(task), tmp_path)
+    assert demonstrator.metadata["algorithm"] == recipe_for(task).algorithm and demonstrator._mlp is not None
     env = make_env(task, seed=0)
-    observations = np.stack([env.reset()[0], env.observation_space.sample()])
+    observations = np.stack([env.reset()[0], np.clip(env.observation_space.sample(), -5, 5)])
     actions = demonstrator.act(observations, [env, env])
     assert actions.shape == (2, get_task(task).act_dim)
     assert np.all(actions >= env.action_space.low) and np.all(actions <= env.action_space.high)
     np.testing.assert_array_equal(actions, demonstrator.act(observations, [env, env]))  # deterministic
+    expected, _ = demonstrator.policy.predict(demonstrator.normalize(observations), deterministic=True)
+    np.testing.assert_allclose(actions, expected, rtol=1e-5, atol=1e-5)  # the numpy forward is SB3's policy
 
 
 class InterruptAt(BaseCallback):
@@ -110,7 +113,8 @@ def test_industrial_benchmark_policy_normalizes_observations_like_its_training()
 
 @pytest.mark.parametrize("task, episodes", [
     ("InvertedPendulum-v5", 2), ("InvertedDoublePendulum-v5", 2), ("Swimmer-v5", 2), ("Reacher-v5", 10),
-    ("Pusher-v5", 10), ("Hopper-v5", 2), ("HalfCheetah-v5", 2), ("industrial-benchmark-35-v1", 3), ("industrial-benchmark-90-v1", 3),
+    ("Pusher-v5", 10), ("Hopper-v5", 2), ("HalfCheetah-v5", 2), ("Walker2d-v5", 5), ("industrial-benchmark-35-v1", 3),
+    ("industrial-benchmark-90-v1", 3),
 ])
 def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episodes):
     returns = episode_returns(task, load_demonstrator(task), episodes)

@@ -26,6 +26,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.distributions import DiagGaussianDistribution
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.sac.policies import SACPolicy
+from stable_baselines3.td3.policies import TD3Policy
 from stable_baselines3.common.vec_env import VecNormalize
 
 from vintix.atomic import atomic_path, atomic_write_text
@@ -121,9 +122,11 @@ class TrainedDemonstrator:
 
 def deterministic_actor(policy: BasePolicy) -> list[torch.nn.Module] | None:
     """The modules, in order, that map a (normalized, flat) observation to the policy's deterministic
-    action: SAC's mean squashed by tanh, PPO's Gaussian mean; None for other policies."""
+    action: SAC's mean squashed by tanh, TD3's actor (tanh last), PPO's Gaussian mean; None for others."""
     if isinstance(policy, SACPolicy) and not policy.actor.use_sde:
         return [*policy.actor.latent_pi, policy.actor.mu, torch.nn.Tanh()]
+    if isinstance(policy, TD3Policy):
+        return list(policy.actor.mu)
     if isinstance(policy, ActorCriticPolicy) and isinstance(policy.action_dist, DiagGaussianDistribution):
         return [*policy.mlp_extractor.policy_net, policy.action_net]
     return None
