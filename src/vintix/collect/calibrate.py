@@ -33,9 +33,8 @@ def episode_noise(history: LearningHistory) -> tuple[np.ndarray, np.ndarray, np.
         raise DatasetError(history.path, "records no noise schedule (it was not made by `vintix collect`), so the "
                                          "noise its episodes were played at is unknown")
     epsilon = NoiseSchedule.from_recorded(attrs).epsilon(np.arange(history.num_steps), int(attrs["steps"]))
-    starts = history.episode_starts
-    lengths = np.diff(np.append(starts, history.num_steps))
-    mean_epsilon = np.add.reduceat(epsilon, starts) / lengths
+    lengths = history.episode_lengths()
+    mean_epsilon = np.add.reduceat(epsilon, history.episode_starts) / lengths
     return mean_epsilon[:-1], history.episode_returns()[:-1], lengths[:-1]
 
 
@@ -47,8 +46,7 @@ def fit_schedules(root: PathLike, count: int = 11) -> tuple[list[FittedSchedule]
         for path in task.history_paths:
             with LearningHistory(path) as history:
                 parts.append(episode_noise(history))
-        epsilons, returns, lengths = (np.concatenate([part[i] for part in parts]) if parts else np.empty(0)
-                                      for i in range(3))
+        epsilons, returns, lengths = (np.concatenate(column) for column in zip(*parts)) if parts else [np.empty(0)] * 3
         try:
             fitted.append(FittedSchedule(task.task_name, len(returns), fit_knots(epsilons, returns, lengths, count)))
         except ValueError as error:

@@ -197,9 +197,8 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         found = {**history.attrs, "steps": history.num_steps}
         differences = [] if history.has_demonstrator_action else ["no demonstrator actions (now stored)"]
     recorded = plan.recorded_settings(index)
-    if "curvature" in found:  # a file of ours: one without knots was made by the power law
-        found = {key: np.ravel(value).tolist() if key == "knots" else value for key, value in found.items()}
-        found.setdefault("knots", [])
+    if "curvature" in found:  # a file of ours, its knots read as the schedule reads them (none: the power law)
+        found["knots"] = list(NoiseSchedule.from_recorded(found).knots)
         recorded.setdefault("knots", [])
     return differences + [f"{key} {found[key]!r} (now {value!r})" for key, value in recorded.items()
                           if key in found and found[key] != value]

@@ -523,6 +523,10 @@ class LearningHistory:
             )
         return np.add.reduceat(self._column("reward").astype(np.float64), starts)
 
+    def episode_lengths(self) -> np.ndarray:
+        """Steps of each episode, in the order of `episode_returns`."""
+        return np.diff(np.append(self.episode_starts, self.num_steps))
+
     def read(self, start: int, stop: int, demonstrator_action: bool = False) -> dict[str, np.ndarray]:
         """Rows [start, stop) as ``observation``, ``action``, ``reward``, ``step_num`` in official dtypes,
         plus ``demonstrator_action`` if asked (a file without it raises)."""

@@ -90,7 +90,7 @@ def task_curves(root: PathLike, bins: int, reference_table: str = "ours"
         for path in task.history_paths:
             with LearningHistory(path) as history:
                 returns = history.episode_returns()
-                lengths = np.diff(np.append(history.episode_starts, history.num_steps))
+                lengths = history.episode_lengths()
                 if len(returns) > 1:  # the history's end usually cuts its last episode short: a fake dip
                     returns, lengths = returns[:-1], lengths[:-1]
                 curves.append(normalized_curve(returns, lengths, scores.random, scores.expert, bins))
