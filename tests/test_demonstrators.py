@@ -1,6 +1,8 @@
 """Demonstrators: training with SB3, weights-only save/load, shipped experts' scores, the score table."""
 
 import json
+import os
+import signal
 from dataclasses import replace
 
 import numpy as np
@@ -48,15 +50,18 @@ def test_trained_policy_round_trips_through_weights_only_files(tmp_path, task):
 
 
 class InterruptAt(BaseCallback):
-    """Ctrl-C at env step `step`."""
+    """Ctrl-C at env step `step`, or a SIGTERM sent to this process (what `kill` sends)."""
 
-    def __init__(self, step: int):
+    def __init__(self, step: int, how: str):
         super().__init__()
-        self.step = step
+        self.step, self.how = step, how
 
     def _on_step(self) -> bool:
         if self.num_timesteps >= self.step:
-            raise KeyboardInterrupt
+            if self.how == "sigterm":
+                os.kill(os.getpid(), signal.SIGTERM)
+            else:
+                raise KeyboardInterrupt
         return True
 
 
@@ -70,13 +75,16 @@ class RecordStart(BaseCallback):
         return True
 
 
-def test_interrupted_training_resumes_where_it_stopped(tmp_path):
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
+def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     task = "InvertedPendulum-v5"
     recipe = DemonstratorRecipe("SAC", 120, {"learning_starts": 20, "batch_size": 16, "buffer_size": 1000},
                                 normalize_observations=True)
     run = dict(out=tmp_path, progress_bar=False, recipe=recipe)
+    handler = signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt):
-        train_demonstrator(task, callback=InterruptAt(70), **run)
+        train_demonstrator(task, callback=InterruptAt(70, how), **run)
+    assert signal.getsignal(signal.SIGTERM) is handler  # SIGTERM interrupts only while training runs
     state = default_state_dir(get_task(task).group, seed=0)
     saved = json.loads(next(state.glob("steps-*/state.json")).read_text())
     assert saved["num_timesteps"] == 70 and not (tmp_path / "mujoco-invertedpendulum.json").exists()

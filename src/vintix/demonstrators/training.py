@@ -11,8 +11,8 @@ gamma 0.97, 1M steps, trained on the delta reward and scored on the classic one)
 single policy is trained on all 21 setpoints at once, one env each (the setpoint is its first
 observation), with 250 steps per env per rollout (5,250 per update, the paper's 2,500 per task).
 
-Training resumes: every few minutes, and on Ctrl-C, the run saves the SB3 model, its replay buffer and
-its VecNormalize statistics (SB3's own save functions) under ``~/.cache/vintix/demonstrator-training``;
+Training resumes: every few minutes, and on Ctrl-C or SIGTERM, the run saves the SB3 model, its replay
+buffer and its VecNormalize statistics (SB3's own save functions) under ``~/.cache/vintix/demonstrator-training``;
 re-running the same command continues from there. The episodes in progress restart and the RNG
 streams differ, so a resumed run is not bit-identical to an uninterrupted one. These are local,
 pickled working files; only the final weights ship, as safetensors.
@@ -22,8 +22,11 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
@@ -175,6 +178,25 @@ class _SaveEvery(BaseCallback):
         return True
 
 
+@contextmanager
+def _sigterm_as_ctrl_c() -> Iterator[None]:
+    """Let SIGTERM interrupt like Ctrl-C, so the run is saved before it stops: `kill` and cluster
+    schedulers send it, and background jobs ignore Ctrl-C. Python takes signals in the main thread
+    only; elsewhere SIGTERM keeps its default."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume: Path | None
                     ) -> tuple[BaseAlgorithm, VecNormalize | None]:
     """The SB3 model (and its VecNormalize wrapper, if the recipe has one): fresh, or loaded from `resume`."""
@@ -210,7 +232,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
 
     Returns the weights file. `timesteps` overrides the budget (e.g. for a quick check); `recipe`
     replaces the group's recipe (to try other hyperparameters). The resumable state is saved every
-    `save_minutes` and on Ctrl-C under `state_dir` (default: `default_state_dir`); a run finds and
+    `save_minutes` and on Ctrl-C or SIGTERM under `state_dir` (default: `default_state_dir`); a run finds and
     continues it, and deletes it once the weights are written. `callback`: more SB3 callbacks.
     """
     spec = get_task(task)
@@ -231,8 +253,9 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
 
     callbacks = [_SaveEvery(save_state, save_minutes * 60.0)] + ([callback] if callback else [])
     try:
-        model.learn(total_timesteps=budget - model.num_timesteps, callback=callbacks,
-                    reset_num_timesteps=found is None, progress_bar=progress_bar)
+        with _sigterm_as_ctrl_c():
+            model.learn(total_timesteps=budget - model.num_timesteps, callback=callbacks,
+                        reset_num_timesteps=found is None, progress_bar=progress_bar)
     except KeyboardInterrupt:
         save_state()
         raise TrainingInterrupted(
