@@ -629,6 +629,10 @@ cli_error("data", "plot: corrupted block", lambda: ["data", "plot", DATA["corrup
 cli_error("data", "fit-schedule: histories without a recorded schedule", lambda: ["data", "fit-schedule", clean_data()],
           "records no noise schedule")
 cli_error("data", "fit-schedule: one knot", lambda: ["data", "fit-schedule", clean_data(), "--knots", "1"], "--knots")
+cli_error("data", "smoothness --own-expert: histories without a recorded schedule",
+          lambda: ["data", "smoothness", clean_data(), "--own-expert"], "records no noise schedule")
+cli_error("data", "smoothness --own-expert: no complete noise-free episode",
+          lambda: ["data", "smoothness", collected(), "--own-expert"], "no complete noise-free episode")
 
 
 def corrupted_block_read() -> object:

@@ -372,23 +372,29 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
     console.print(table)
 
 
+OWN_EXPERT_HELP = ("scale each history by its own noise-free episodes instead of the table's expert (fair where "
+                   "histories play different variants of a task, e.g. Meta-World's hidden goals)")
+
+
 @data_app.command("plot")
 def data_plot(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
     out: Annotated[Path, typer.Option(help="folder for the PNG figures")] = Path("figs"),
     bins: Annotated[int, typer.Option(min=1, help="bins along the history")] = 50,
     reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
+    own_expert: Annotated[bool, typer.Option(help=OWN_EXPERT_HELP)] = False,
 ) -> None:
     """Paper Figure 3: IQM of normalized episode return along the histories, per task and per domain."""
     from vintix.data.plot import plot_dataset
 
     try:
-        written, skipped = plot_dataset(root, out, bins, reference)
+        written, skipped = plot_dataset(root, out, bins, reference, own_expert)
     except (VintixError, ValueError) as error:
         raise _fail(error)
     if skipped:
         console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: {', '.join(skipped)}")
-    console.print(f"wrote {len(written)} figures under {out} (normalized by the '{reference}' random/expert scores)")
+    scale = f"'{reference}' random scores and each history's noise-free return" if own_expert else f"'{reference}' random/expert scores"
+    console.print(f"wrote {len(written)} figures under {out} (normalized by the {scale})")
 
 
 @data_app.command("smoothness")
@@ -396,12 +402,13 @@ def data_smoothness(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
     bins: Annotated[int, typer.Option(min=2, help="bins along the history")] = 10,
     reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
+    own_expert: Annotated[bool, typer.Option(help=OWN_EXPERT_HELP)] = False,
 ) -> None:
     """Does each task's return rise smoothly from random to demonstrator level? The criterion noise schedules are chosen by."""
     from vintix.data.plot import SMOOTH_CORRELATION, SMOOTH_JUMP, SMOOTH_RISE, smoothness
 
     try:
-        results, skipped = smoothness(root, bins, reference)
+        results, skipped = smoothness(root, bins, reference, own_expert)
     except (VintixError, ValueError) as error:
         raise _fail(error)
     table = Table(title=f"smoothness over {bins} bins of each history (worst history per task; smooth: rank "

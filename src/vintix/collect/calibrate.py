@@ -38,6 +38,18 @@ def episode_noise(history: LearningHistory) -> tuple[np.ndarray, np.ndarray, np.
     return mean_epsilon[:-1], history.episode_returns()[:-1], lengths[:-1]
 
 
+def noise_free_return(history: LearningHistory) -> float:
+    """Mean return of a history's noise-free episodes (ε = 0 throughout): its demonstrator's level on the
+    very variant of the task it plays (a Meta-World history plays one hidden goal, whose demonstrator
+    return can be a quarter or four times the task's mean over goals)."""
+    epsilon, returns, _ = episode_noise(history)
+    if not np.any(epsilon == 0):
+        raise DatasetError(history.path, "has no complete noise-free episode to take its demonstrator's level "
+                                         "from: collect with a noise-free fraction (f) that holds two episodes "
+                                         "or more, or normalize by a reference table")
+    return float(returns[epsilon == 0].mean())
+
+
 def fit_schedules(root: PathLike, count: int = 11) -> tuple[list[FittedSchedule], list[str]]:
     """Knots for every task of a dataset, from all its histories together, and why any task has none."""
     fitted, skipped = [], []

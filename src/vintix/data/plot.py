@@ -6,7 +6,9 @@ over each of `bins` equal fractions of the history's *steps*, so a bin always ha
 long the episodes are (a 30k-step Swimmer history has only 30 episodes). A task's curve is the IQM
 over its histories; a domain's is the IQM over all the histories of its tasks, so every history
 weighs the same. The reference table is ours by default (our demonstrators' measured returns: the
-paper's are from other env versions), or the paper's.
+paper's are from other env versions), or the paper's. With `own_expert`, each history's demonstrator
+level is instead its own noise-free tail: the fair scale where histories of one task play different
+variants (Meta-World's hidden goals), whose demonstrator returns differ several-fold.
 
 The same curves give the smoothness criterion a noise schedule is chosen by (`smoothness`): a
 history should rise steadily (rank correlation of return with position), without abrupt jumps
@@ -68,10 +70,12 @@ def _plot(curves: dict[str, np.ndarray], title: str, path: Path) -> Path:
     return path
 
 
-def task_curves(root: PathLike, bins: int, reference_table: str = "ours"
+def task_curves(root: PathLike, bins: int, reference_table: str = "ours", own_expert: bool = False
                 ) -> tuple[dict[str, dict[str, np.ndarray]], list[str]]:
     """Domain -> task -> normalized curves of its histories ([histories, bins]), and the tasks skipped:
-    unknown to the registry, or without a reference in `reference_table` ('ours' or 'paper')."""
+    unknown to the registry, or without a reference in `reference_table` ('ours' or 'paper').
+    `own_expert`: each history's expert level is the mean return of its noise-free episodes."""
+    from vintix.collect.calibrate import noise_free_return
     from vintix.evaluate.scores import reference
 
     if bins < 1:
@@ -93,15 +97,17 @@ def task_curves(root: PathLike, bins: int, reference_table: str = "ours"
                 lengths = history.episode_lengths()
                 if len(returns) > 1:  # the history's end usually cuts its last episode short: a fake dip
                     returns, lengths = returns[:-1], lengths[:-1]
-                curves.append(normalized_curve(returns, lengths, scores.random, scores.expert, bins))
+                expert = noise_free_return(history) if own_expert else scores.expert
+                curves.append(normalized_curve(returns, lengths, scores.random, expert, bins))
         by_domain[task.domain][task.task_name] = np.array(curves)
     return by_domain, skipped
 
 
-def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table: str = "ours") -> tuple[list[Path], list[str]]:
+def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table: str = "ours",
+                 own_expert: bool = False) -> tuple[list[Path], list[str]]:
     """One PNG per task and one per domain under `out`, normalized by `reference_table` ('ours' or
-    'paper'). Returns the figures and the tasks skipped (see `task_curves`)."""
-    by_domain, skipped = task_curves(root, bins, reference_table)
+    'paper'; see `task_curves` for `own_expert`). Returns the figures and the tasks skipped."""
+    by_domain, skipped = task_curves(root, bins, reference_table, own_expert)
     out = Path(out)
     written = []
     for domain, tasks in sorted(by_domain.items()):
@@ -134,9 +140,11 @@ class Smoothness:
                 and self.end - self.start >= SMOOTH_RISE)
 
 
-def smoothness(root: PathLike, bins: int = 10, reference_table: str = "ours") -> tuple[list[Smoothness], list[str]]:
-    """The smoothness criterion of every task of a dataset (see `Smoothness`), and the tasks skipped."""
-    by_domain, skipped = task_curves(root, bins, reference_table)
+def smoothness(root: PathLike, bins: int = 10, reference_table: str = "ours", own_expert: bool = False
+               ) -> tuple[list[Smoothness], list[str]]:
+    """The smoothness criterion of every task of a dataset (see `Smoothness`; `own_expert`: see
+    `task_curves`), and the tasks skipped."""
+    by_domain, skipped = task_curves(root, bins, reference_table, own_expert)
     results = []
     for tasks in by_domain.values():
         for name, curves in sorted(tasks.items()):
