@@ -9,12 +9,16 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 from stable_baselines3.common.callbacks import BaseCallback
+from typer.testing import CliRunner
+
+from vintix.cli import app
 
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_reference_scores, read_scores
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
 from vintix.demonstrators.trained import shipped_weights_dir
-from vintix.demonstrators.training import DemonstratorRecipe, default_state_dir, recipe_for, train_demonstrator
+from vintix.demonstrators.training import (DemonstratorRecipe, default_state_dir, recipe_for, train_demonstrator,
+                                           unfinished_runs)
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
 
@@ -88,6 +92,12 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     state = default_state_dir(get_task(task).group, seed=0)
     saved = json.loads(next(state.glob("steps-*/state.json")).read_text())
     assert saved["num_timesteps"] == 70 and not (tmp_path / "mujoco-invertedpendulum.json").exists()
+    [unfinished] = unfinished_runs()
+    assert (unfinished.group, unfinished.algorithm, unfinished.steps, unfinished.budget) == (
+        "mujoco-invertedpendulum", "SAC", 70, 120)
+    assert unfinished.recent_return is not None and unfinished.recent_return > 0 and unfinished.seconds_left() > 0
+    listed = CliRunner().invoke(app, ["demonstrator", "runs"])
+    assert listed.exit_code == 0 and "mujoco-invertedpendulum" in listed.output and "70 / 120" in listed.output
     with pytest.raises(VintixError, match="unfinished run with other settings"):
         train_demonstrator(task, timesteps=200, **run)
     started = RecordStart()
@@ -96,7 +106,7 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     assert steps_done == 70 and 0 < transitions <= 70  # model and replay buffer came back
     meta = json.loads(path.with_suffix(".json").read_text())
     assert (meta["resumed_at"], meta["timesteps"]) == (70, 120) and "obs_normalization" in meta
-    assert not state.exists()
+    assert not state.exists() and unfinished_runs() == []
 
 
 @pytest.mark.parametrize("task", ["InvertedPendulum-v5", "Swimmer-v5", "Hopper-v5", "industrial-benchmark-40-v1"])

@@ -324,6 +324,27 @@ def demonstrator_list() -> None:
     console.print(result)
 
 
+@demonstrator_app.command("runs")
+def demonstrator_runs() -> None:
+    """Unfinished demonstrator trainings saved in the cache: how far each got, how it does, time left."""
+    from vintix.demonstrators.training import training_runs_dir, unfinished_runs
+
+    runs = unfinished_runs()
+    if not runs:
+        console.print(f"no unfinished demonstrator training under {training_runs_dir()}")
+        return
+    result = Table(title="unfinished demonstrator trainings (resume one with `vintix demonstrator train --task TASK`)")
+    for column in ("group", "algorithm", "seed", "steps", "hours trained", "hours left", "recent training return"):
+        result.add_column(column, justify="left" if column in ("group", "algorithm") else "right")
+    for run in runs:
+        recent = "—" if run.recent_return is None else f"{run.recent_return:,.1f}"
+        result.add_row(run.group, run.algorithm, str(run.seed), f"{run.steps:,} / {run.budget:,}",
+                       f"{run.train_seconds / 3600:.1f}", f"{run.seconds_left() / 3600:.1f}", recent)
+    console.print(result)
+    console.print(f"saved under {training_runs_dir()}; the recent return is the mean of the last 100 training "
+                  "episodes, exploration included (`vintix demonstrator eval` scores a finished one)")
+
+
 def registry_dims(task_name: str) -> tuple[int, int] | None:
     """(obs_dim, act_dim) the registry expects for a dataset's task name; None if it is not ours."""
     try:

@@ -112,9 +112,14 @@ def _monitored_env(task: str, options: dict[str, Any]) -> gym.Env:
     return Monitor(make_env(task, **options))
 
 
+def training_runs_dir() -> Path:
+    """Where unfinished training runs are saved, one folder per group and seed."""
+    return user_cache_dir("demonstrator-training")
+
+
 def default_state_dir(group: str, seed: int) -> Path:
     """Where an unfinished training run of `group` with `seed` keeps what it needs to resume."""
-    return user_cache_dir("demonstrator-training") / f"{group}-seed{seed}"
+    return training_runs_dir() / f"{group}-seed{seed}"
 
 
 def _plan(group: str, budget: int, seed: int, recipe: DemonstratorRecipe) -> dict[str, Any]:
@@ -141,7 +146,9 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
         model.save_replay_buffer(state / "replay_buffer.pkl")
     if vec_normalize is not None:
         vec_normalize.save(str(state / "vecnormalize.pkl"))
-    info = {"plan": plan, "num_timesteps": model.num_timesteps, "train_seconds": round(train_seconds, 1)}
+    returns = [episode["r"] for episode in model.ep_info_buffer or ()]
+    info = {"plan": plan, "num_timesteps": model.num_timesteps, "train_seconds": round(train_seconds, 1),
+            "recent_return": round(float(np.mean(returns)), 1) if returns else None}
     atomic_write_text(state / STATE_FILE, json.dumps(info, indent=1) + "\n")
     for other in directory.glob("steps-*"):
         if other != state:
@@ -149,19 +156,63 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
     return state
 
 
+def _newest_state(directory: Path) -> tuple[Path, dict[str, Any]] | None:
+    """The newest complete state in `directory` and its info, if any."""
+    complete = sorted(p.parent for p in directory.glob(f"steps-*/{STATE_FILE}"))
+    return (complete[-1], json.loads((complete[-1] / STATE_FILE).read_text())) if complete else None
+
+
 def latest_training_state(directory: Path, plan: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:
     """The newest complete state in `directory` and its info; an unfinished run with another plan
     is an error (resuming it under new settings would train neither)."""
-    complete = sorted(p.parent for p in directory.glob(f"steps-*/{STATE_FILE}"))
-    if not complete:
+    found = _newest_state(directory)
+    if found is None:
         return None
-    info = json.loads((complete[-1] / STATE_FILE).read_text())
+    state, info = found
     if info["plan"] != plan:
         raise VintixError(
             f"{directory} holds an unfinished run with other settings ({info['plan']}); re-run with those "
             f"settings to finish it, or delete the folder to start this one ({plan})"
         )
-    return complete[-1], info
+    return state, info
+
+
+@dataclass(frozen=True)
+class UnfinishedRun:
+    """A demonstrator training run saved before its end, as its newest state records it."""
+
+    folder: Path
+    group: str
+    algorithm: str
+    seed: int
+    steps: int
+    """Env steps done."""
+    budget: int
+    """Env steps the run trains for."""
+    train_seconds: float
+    """Time spent training, over all the sessions it was resumed in (its saves included)."""
+    recent_return: float | None
+    """Mean return of its last (up to 100) training episodes before the save, exploration included;
+    None when no episode had ended since the run was last started."""
+
+    def seconds_left(self) -> float:
+        """Training time still needed at the pace so far."""
+        return (self.budget - self.steps) * self.train_seconds / max(self.steps, 1)
+
+
+def unfinished_runs(root: Path | None = None) -> list[UnfinishedRun]:
+    """Every run saved under `root` (default: `training_runs_dir`) that has not finished."""
+    root = root or training_runs_dir()
+    runs = []
+    for folder in sorted(p for p in root.glob("*") if p.is_dir()):
+        found = _newest_state(folder)
+        if found is not None:
+            info = found[1]
+            plan = info["plan"]
+            runs.append(UnfinishedRun(folder, plan["group"], plan["recipe"]["algorithm"], plan["seed"],
+                                      info["num_timesteps"], plan["timesteps"], info["train_seconds"],
+                                      info.get("recent_return")))
+    return runs
 
 
 class _SaveEvery(BaseCallback):
