@@ -445,6 +445,7 @@ class LearningHistory:
         self._pid: int | None = None
         self._layout: Layout | None = None
         self._episode_starts: np.ndarray | None = None
+        self._episode_returns: np.ndarray | None = None
 
     @property
     def _file(self) -> h5py.File:
@@ -515,13 +516,17 @@ class LearningHistory:
         return self._episode_starts
 
     def episode_returns(self) -> np.ndarray:
-        """Sum of rewards of each episode, in order (the last one may be cut short by the history's end)."""
-        starts = self.episode_starts
-        if len(starts) == 0 or starts[0] != 0:
-            raise DatasetError(
-                self.path, "does not start with step_num 0, so episodes are ambiguous; run `vintix data validate`"
-            )
-        return np.add.reduceat(self._column("reward").astype(np.float64), starts)
+        """Sum of rewards of each episode, in order (the last one may be cut short by the history's end);
+        cached and read-only, since plots and schedule fits ask for it more than once per file."""
+        if self._episode_returns is None:
+            starts = self.episode_starts
+            if len(starts) == 0 or starts[0] != 0:
+                raise DatasetError(
+                    self.path, "does not start with step_num 0, so episodes are ambiguous; run `vintix data validate`"
+                )
+            self._episode_returns = np.add.reduceat(self._column("reward").astype(np.float64), starts)
+            self._episode_returns.flags.writeable = False
+        return self._episode_returns
 
     def episode_lengths(self) -> np.ndarray:
         """Steps of each episode, in the order of `episode_returns`."""
