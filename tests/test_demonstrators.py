@@ -17,6 +17,7 @@ from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_reference_scores, read_scores
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
 from vintix.demonstrators.trained import shipped_weights_dir
+from vintix.demonstrators import training
 from vintix.demonstrators.training import (DemonstratorRecipe, default_state_dir, recipe_for, train_demonstrator,
                                            unfinished_runs)
 from vintix.errors import VintixError
@@ -107,6 +108,25 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     meta = json.loads(path.with_suffix(".json").read_text())
     assert (meta["resumed_at"], meta["timesteps"]) == (70, 120) and "obs_normalization" in meta
     assert not state.exists() and unfinished_runs() == []
+
+
+def test_slow_saves_are_spaced_out_so_they_take_a_small_share_of_training(monkeypatch):
+    clock = [0.0]
+    monkeypatch.setattr(training.time, "perf_counter", lambda: clock[0])
+    saved_at = []
+
+    def save(seconds: float) -> None:
+        saved_at.append(clock[0])
+        clock[0] += seconds
+
+    for save_seconds, expected in [(0.1, [300.0 + 300.1 * k for k in range(8)]), (20.0, [300.0, 1320.0, 2340.0])]:
+        clock[0], saved_at[:] = 0.0, []
+        saver = training._SaveEvery(lambda: save(save_seconds), seconds=300.0, max_share=0.02)
+        while clock[0] < 2500:
+            saver._on_step()
+            clock[0] += 1.0  # a training step
+        # Fast saves keep the interval; a 20 s save waits 1,000 s after it, 2 % of the time.
+        np.testing.assert_allclose(saved_at, expected)
 
 
 @pytest.mark.parametrize("task", ["InvertedPendulum-v5", "Swimmer-v5", "Hopper-v5", "industrial-benchmark-40-v1"])
