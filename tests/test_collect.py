@@ -1,6 +1,7 @@
 """Collecting noise-distilled learning histories on a real simulator with a real demonstrator."""
 
 import filecmp
+from dataclasses import replace
 
 import h5py
 import numpy as np
@@ -141,6 +142,31 @@ def test_a_folder_collected_with_knots_resumes_with_the_same_knots(tmp_path):
     assert not again.collected_now
     with LearningHistory(again.path) as history:
         np.testing.assert_array_equal(history.attrs["knots"], [1.0, 0.2, 0.0])
+
+
+def test_a_pilot_fits_each_history_its_own_knots_and_resumes_with_them(tmp_path):
+    plan = CollectionPlan("handle-pull-v3", histories=3, steps=300, envs_per_batch=3,
+                          schedule=NoiseSchedule(noise_free_fraction=0.1, pilot_steps=2000))
+    summaries = collect(plan, tmp_path)
+    knots = []
+    for summary in summaries:
+        with LearningHistory(summary.path) as history:
+            assert history.attrs["pilot_steps"] == 2000 and history.num_steps == 300  # the pilot is not stored
+            knots.append(tuple(history.attrs["knots"]))
+    assert all(k[0] == 1 and k[-1] == 0 and np.all(np.diff(k) <= 0) for k in knots)
+    assert len(set(knots)) == 3  # each goal answers noise its own way (seed 0: three different fits)
+    assert not any(s.collected_now for s in collect(plan, tmp_path))  # each file's own knots are not a difference
+    without = CollectionPlan("handle-pull-v3", 3, 300, envs_per_batch=3, schedule=NoiseSchedule(noise_free_fraction=0.1))
+    for other, folder, difference in [(replace(plan, schedule=replace(plan.schedule, pilot_steps=1000)), tmp_path,
+                                       "pilot_steps 2000 (now 1000)"), (without, tmp_path, "pilot_steps 2000 (now 0)"),
+                                      (plan, tmp_path / "plain", "pilot_steps 0 (now 2000)")]:
+        if folder.name == "plain":
+            collect(without, folder)
+        with pytest.raises(CollectionSettingsError, match="other settings") as error:
+            collect(other, folder)
+        assert difference in str(error.value)
+    with pytest.raises(CollectionError, match="give knots or pilot_steps, not both"):
+        CollectionPlan("reach-v3", 1, 100, NoiseSchedule(knots=(1.0, 0.0), pilot_steps=100))
 
 
 @pytest.mark.parametrize(("settings", "message"), [

@@ -22,13 +22,15 @@ def test_disk_size_is_what_the_collector_writes(tmp_path, steps):
 
 
 def test_batches_go_to_the_first_free_worker_in_submission_order():
-    tasks = [TaskEstimate("a", 3, 100, [1, 1, 1], 0, steps_per_s=10.0, measured=True),   # batches of 10 s
-             TaskEstimate("b", 1, 300, [1], 0, steps_per_s=10.0, measured=True)]          # one of 30 s
+    tasks = [TaskEstimate("a", 3, 100, 0, [1, 1, 1], 0, steps_per_s=10.0, measured=True),   # batches of 10 s
+             TaskEstimate("b", 1, 300, 0, [1], 0, steps_per_s=10.0, measured=True)]          # one of 30 s
     assert wall_seconds(tasks, workers=1) == 60
     assert wall_seconds(tasks, workers=2) == 40  # worker 1: 10 + 10, then b; worker 2: 10
     assert wall_seconds(tasks, workers=8) == 30
     with pytest.raises(VintixError, match="workers must be >= 1, got 0"):
         wall_seconds(tasks, workers=0)
+    piloted = TaskEstimate("c", 2, 100, 50, [2], 0, steps_per_s=10.0, measured=True)
+    assert piloted.batch_seconds == [30.0] and piloted.steps == 200  # pilots take time, store nothing
 
 
 def test_a_task_without_a_demonstrator_is_estimated_from_its_raw_rate():
@@ -62,5 +64,8 @@ def test_plan_prints_the_totals_and_collects_nothing(tmp_path):
     assert result.exit_code == 0, result.output
     assert "72 tasks, 1,015 histories, 191,500,000 steps" in result.output
     assert "with --workers 16: about" in result.output
+    result = CliRunner().invoke(app, ["collect", "--task", "reach-v3", "--histories", "2", "--steps", "1000",
+                                      "--pilot-steps", "500", "--plan"])
+    assert result.exit_code == 0 and "2,000 steps (+ 1,000 pilot steps, not stored)" in result.output
     result = CliRunner().invoke(app, ["collect", "--task", "reach-v3"])
     assert result.exit_code == 2 and "give --out" in result.output

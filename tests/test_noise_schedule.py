@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from vintix.collect import CollectionPlan, NoiseSchedule, collect, mix_action
-from vintix.collect.calibrate import fit_schedules
+from vintix.collect.calibrate import fit_schedules, pilot_knots
 from vintix.collect.noise import fit_knots
 
 
@@ -44,6 +44,7 @@ def test_knots_replace_the_power_law_before_the_noise_free_tail():
     (dict(noise_free_fraction=-0.1), "must lie in"), (dict(knots=[1.0, 0.5]), "fall from 1 to 0"),
     (dict(knots=[1.0, 0.3, 0.4, 0.0]), "never rising"), (dict(knots=[1.0]), "at least two"),
     (dict(knots=[1.0, 0.0], curvature=2.0), "not both"), (dict(knots=["high", 0.0]), "knots must be tuple"),
+    (dict(pilot_steps=-1), "pilot_steps must be >= 0"), (dict(pilot_steps=100, curvature=2.0), "not both"),
 ])
 def test_invalid_parameters_are_rejected(bad, message):
     with pytest.raises(ValueError, match=message):
@@ -61,6 +62,15 @@ def test_fitted_knots_spend_the_history_where_return_changes():
     np.testing.assert_allclose(ramp, np.linspace(1, 0, 11), atol=0.06)
     with pytest.raises(ValueError, match="does not fall with noise"):
         fit_knots(epsilons, np.zeros(400), steps)
+
+
+def test_a_pilot_whose_return_does_not_fall_with_noise_gets_linear_decay():
+    steps = np.arange(1000)
+    epsilon, step_num = 1 - steps / 1000, steps % 100
+    rising = pilot_knots(epsilon, (1 - epsilon).astype(np.float32), step_num)  # the demonstrator earns more with less noise
+    assert rising[0] == 1.0 and rising[-1] == 0.0 and len(rising) == 11
+    assert pilot_knots(epsilon, np.zeros(1000, np.float32), step_num) == (1.0, 0.0)  # a goal it never scores on
+    assert pilot_knots(epsilon, np.ones(1000, np.float32), np.arange(1000)) == (1.0, 0.0)  # no complete episode
 
 
 def test_fit_schedules_reads_each_episode_noise_from_the_histories_of_a_real_collection(tmp_path):

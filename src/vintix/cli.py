@@ -147,6 +147,8 @@ def collect(
     steps: Annotated[int, typer.Option(help="steps per history for --task")] = 10_000,
     curvature: Annotated[float, typer.Option(help="noise schedule curvature p for --task")] = 1.0,
     noise_free_fraction: Annotated[float, typer.Option(help="noise-free tail fraction f for --task")] = 0.05,
+    pilot_steps: Annotated[int, typer.Option(help="for --task: fit each history's knots to a pilot run of this many "
+                                             "steps on its own env first (0: none; see NoiseSchedule)")] = 0,
     envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 16,
     seed: int = 0,
     workers: Annotated[int, typer.Option(help="processes (one per core)")] = 1,
@@ -167,7 +169,8 @@ def collect(
         if (task is None) == (recipe is None):
             raise VintixError("give exactly one of --task or --recipe")
         plans = load_recipe(recipe) if recipe else [CollectionPlan(
-            task, histories, steps, NoiseSchedule(curvature, noise_free_fraction), seed, envs_per_batch)]
+            task, histories, steps, NoiseSchedule(curvature, noise_free_fraction, pilot_steps=pilot_steps), seed,
+            envs_per_batch)]
         if plan:
             _print_collection_plan(plans, workers, rates)
             return
@@ -207,7 +210,9 @@ def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file
     console.print(table)
     steps = sum(e.steps for e in estimates)
     core_hours = sum(sum(e.batch_seconds) for e in estimates) / 3600
-    console.print(f"total: {len(estimates)} tasks, {sum(e.histories for e in estimates):,} histories, {steps:,} steps, "
+    pilots = sum(e.histories * e.pilot_steps for e in estimates)
+    steps_line = f"{steps:,} steps" + (f" (+ {pilots:,} pilot steps, not stored)" if pilots else "")
+    console.print(f"total: {len(estimates)} tasks, {sum(e.histories for e in estimates):,} histories, {steps_line}, "
                   f"{_size(sum(e.bytes for e in estimates))} on disk, {core_hours:.1f} core-hours; with --workers "
                   f"{workers}: about {wall_seconds(estimates, workers) / 3600:.1f} h wall time")
     estimated = [e.task for e in estimates if not e.measured]

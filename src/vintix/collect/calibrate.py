@@ -26,6 +26,15 @@ class FittedSchedule:
     knots: tuple[float, ...]
 
 
+def complete_episodes(epsilon: np.ndarray, starts: np.ndarray, returns: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean ε, return and length of each episode of a run of ``len(epsilon)`` steps whose episodes begin
+    at rows `starts` and earn `returns`, but the last (cut by the run's end)."""
+    lengths = np.diff(np.append(starts, len(epsilon)))
+    mean_epsilon = np.add.reduceat(epsilon, starts) / lengths
+    return mean_epsilon[:-1], np.asarray(returns)[:-1], lengths[:-1]
+
+
 def episode_noise(history: LearningHistory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean ε, return and length of each episode of a history, but the last (cut by the history's end)."""
     attrs = history.attrs
@@ -33,9 +42,19 @@ def episode_noise(history: LearningHistory) -> tuple[np.ndarray, np.ndarray, np.
         raise DatasetError(history.path, "records no noise schedule (it was not made by `vintix collect`), so the "
                                          "noise its episodes were played at is unknown")
     epsilon = NoiseSchedule.from_recorded(attrs).epsilon(np.arange(history.num_steps), int(attrs["steps"]))
-    lengths = history.episode_lengths()
-    mean_epsilon = np.add.reduceat(epsilon, history.episode_starts) / lengths
-    return mean_epsilon[:-1], history.episode_returns()[:-1], lengths[:-1]
+    return complete_episodes(epsilon, history.episode_starts, history.episode_returns())
+
+
+def pilot_knots(epsilon: np.ndarray, reward: np.ndarray, step_num: np.ndarray) -> tuple[float, ...]:
+    """Knots for one history from its pilot run (ε, reward and step number per step, starting an episode):
+    `fit_knots` on its complete episodes; linear decay, (1, 0), when its return does not fall with noise
+    (a goal the demonstrator fails even noise-free) or it completed no episode."""
+    starts = np.flatnonzero(step_num == 0)
+    returns = np.add.reduceat(reward.astype(np.float64), starts)
+    try:
+        return fit_knots(*complete_episodes(epsilon, starts, returns))
+    except ValueError:
+        return (1.0, 0.0)
 
 
 def noise_free_return(history: LearningHistory) -> float:

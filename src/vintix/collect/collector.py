@@ -8,7 +8,8 @@ complete, so re-running an interrupted collection finishes exactly what is missi
 same bytes as an uninterrupted run even if the demonstrator's batched numerics depend on the batch.
 
 Each history records the settings it was made with (root attributes: env seed, base seed, steps,
-noise schedule) and, per step, the demonstrator's action before noise (``demonstrator_action``).
+noise schedule, with the knots its pilot fitted if it had one) and, per step, the demonstrator's
+action before noise (``demonstrator_action``).
 Re-running into a folder whose histories were made with other settings is refused
 (`CollectionSettingsError`): skipping them as "already done" would silently keep the wrong data.
 """
@@ -16,16 +17,18 @@ Re-running into a folder whose histories were made with other settings is refuse
 from __future__ import annotations
 
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
+import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
 from vintix import cluster
+from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.demonstrators import Demonstrator, load_demonstrator
@@ -66,11 +69,13 @@ class CollectionPlan:
         if bad:
             raise CollectionError(f"{self.task}: {', '.join(bad)}; histories, steps and envs_per_batch must be >= 1, "
                                   "seed >= 0")
+        if self.schedule.pilot_steps and self.schedule.knots:
+            raise CollectionError(f"{self.task}: give knots or pilot_steps, not both (a pilot fits each history's knots)")
 
     def recorded_settings(self, index: int) -> dict[str, Any]:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
-        return {"env_seed": history_seeds(get_task(self.task).name, index, self.seed)[0], "collection_seed": self.seed,
-                "steps": self.steps, **self.schedule.recorded()}
+        env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
+        return {"env_seed": env_seed, "collection_seed": self.seed, "steps": self.steps, **self.schedule.recorded()}
 
 
 @dataclass(frozen=True)
@@ -94,10 +99,23 @@ def history_path(root: Path, spec: TaskSpec, index: int) -> Path:
     return task_directory(root, spec.domain, spec.name) / f"history-{index:04d}.h5"
 
 
-def history_seeds(task: str, index: int, seed: int) -> tuple[int, np.random.Generator]:
-    """(env seed, noise RNG) of one history; crc32 because Python's str hash changes per process."""
-    env_sequence, noise_sequence = np.random.SeedSequence([seed, zlib.crc32(task.encode()), index]).spawn(2)
-    return int(env_sequence.generate_state(1)[0]), np.random.default_rng(noise_sequence)
+class HistorySeeds(NamedTuple):
+    """What one history is seeded with."""
+
+    env_seed: int
+    noise: np.random.Generator
+    """The uniform noise mixed into the history's actions."""
+    pilot_noise: np.random.Generator
+    """The noise of its pilot run (`NoiseSchedule.pilot_steps`), a stream of its own so that histories
+    without a pilot are the same as before pilots existed."""
+
+
+def history_seeds(task: str, index: int, seed: int) -> HistorySeeds:
+    """The seeds of one history; crc32 because Python's str hash changes per process."""
+    sequence = np.random.SeedSequence([seed, zlib.crc32(task.encode()), index])
+    env_sequence, noise_sequence, pilot_sequence = sequence.spawn(3)
+    return HistorySeeds(int(env_sequence.generate_state(1)[0]), np.random.default_rng(noise_sequence),
+                        np.random.default_rng(pilot_sequence))
 
 
 def batches(plan: CollectionPlan) -> list[list[int]]:
@@ -137,49 +155,23 @@ class _Block:
 
 def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
                   demonstrator: Demonstrator | None = None, progress_position: int = 0) -> list[Path]:
-    """Collect histories `indices` of `plan.task` together, writing one file each.
-
-    The envs step in lockstep: one batched demonstrator call per step, the noise mixed in for all
-    histories at once, rows buffered for `BLOCK_STEPS` steps. Each history's noise still comes from
-    its own RNG, drawn in the order a step-by-step loop would draw it, so the data do not depend on
-    the block size.
-    """
+    """Collect histories `indices` of `plan.task` together, writing one file each (after each one's
+    pilot run, if the schedule has one)."""
     spec = get_task(plan.task)
     demonstrator = demonstrator or load_demonstrator(spec.name)
     seeds = [history_seeds(spec.name, i, plan.seed) for i in indices]
-    envs = [make_env(spec.name, seed=env_seed) for env_seed, _ in seeds]
-    low, high = envs[0].action_space.low, envs[0].action_space.high
-    epsilons = plan.schedule.epsilon(np.arange(plan.steps), plan.steps)
-    writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim,
-                                     attrs=plan.recorded_settings(i), demonstrator_actions=True) for i in indices]
-    block = _Block.empty(min(BLOCK_STEPS, plan.steps), len(envs), spec.obs_dim, spec.act_dim)
+    envs = [make_env(spec.name, seed=s.env_seed) for s in seeds]
+    label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
+    writers: list[LearningHistoryWriter] = []
     try:
-        observations = np.stack([env.reset()[0] for env in envs])
-        step_nums = np.zeros(len(envs), dtype=np.int64)
-        label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
-        for t in tqdm(range(plan.steps), desc=label, position=progress_position, leave=False, mininterval=1.0):
-            k = t % len(block.step_num)
-            if k == 0:
-                size = min(len(block.step_num), plan.steps - t)
-                for i, (_, rng) in enumerate(seeds):
-                    block.noise[:size, i] = rng.uniform(low, high, size=(size, len(low)))
-            # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
-            expert = np.clip(demonstrator.act(observations, envs), low, high)
-            # float32 before stepping, so the action stored is exactly the action executed.
-            actions = mix_action(expert, float(epsilons[t]), block.noise[k]).astype(np.float32)
-            block.observation[k], block.action[k], block.demonstrator_action[k] = observations, actions, expert
-            block.step_num[k] = step_nums
-            for i, env in enumerate(envs):
-                next_obs, reward, terminated, truncated, _ = env.step(actions[i])
-                block.reward[k, i] = reward
-                if terminated or truncated:
-                    next_obs, _ = env.reset()
-                    step_nums[i] = 0
-                else:
-                    step_nums[i] += 1
-                observations[i] = next_obs
-            if k == len(block.step_num) - 1 or t == plan.steps - 1:
-                block.write(k + 1, writers)
+        schedules = _history_schedules(plan, envs, demonstrator, [s.pilot_noise for s in seeds],
+                                       f"{label} pilot", progress_position)
+        writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim, demonstrator_actions=True,
+                                         attrs=plan.recorded_settings(i) | schedule.recorded())
+                   for i, schedule in zip(indices, schedules)]
+        epsilons = np.stack([schedule.epsilon(np.arange(plan.steps), plan.steps) for schedule in schedules], axis=1)
+        _play(envs, demonstrator, epsilons, [s.noise for s in seeds], label, progress_position,
+              lambda block, start, rows: block.write(rows, writers))
         return [writer.close() for writer in writers]
     except BaseException:
         for writer in writers:
@@ -190,6 +182,64 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
             env.close()
 
 
+def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrator: Demonstrator,
+                       rngs: Sequence[np.random.Generator], label: str, progress_position: int) -> list[NoiseSchedule]:
+    """The schedule of each history of a batch: the plan's, or, with a pilot, knots fitted to a run of
+    `pilot_steps` under linear decay on the history's own env (on Meta-World, its goal)."""
+    steps = plan.schedule.pilot_steps
+    if not steps:
+        return [plan.schedule] * len(envs)
+    epsilon = NoiseSchedule().epsilon(np.arange(steps), steps)
+    reward, step_num = np.empty((steps, len(envs)), np.float32), np.empty((steps, len(envs)), np.int64)
+
+    def keep(block: _Block, start: int, rows: int) -> None:
+        reward[start:start + rows], step_num[start:start + rows] = block.reward[:rows], block.step_num[:rows]
+
+    _play(envs, demonstrator, np.repeat(epsilon[:, None], len(envs), axis=1), rngs, label, progress_position, keep)
+    return [replace(plan.schedule, knots=pilot_knots(epsilon, reward[:, i], step_num[:, i])) for i in range(len(envs))]
+
+
+def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray, rngs: Sequence[np.random.Generator],
+          label: str, progress_position: int, on_block: Callable[[_Block, int, int], None]) -> None:
+    """Play `envs` from a reset for ``len(epsilons)`` steps, env i at noise ``epsilons[t, i]``, handing
+    each full block of rows to ``on_block(block, first step, rows)``.
+
+    The envs step in lockstep: one batched demonstrator call per step, the noise mixed in for all
+    histories at once, rows buffered for `BLOCK_STEPS` steps. Each history's noise still comes from
+    its own RNG, drawn in the order a step-by-step loop would draw it, so the data do not depend on
+    the block size.
+    """
+    total = len(epsilons)
+    low, high = envs[0].action_space.low, envs[0].action_space.high
+    obs_dim, act_dim = envs[0].observation_space.shape[0], len(low)
+    block = _Block.empty(min(BLOCK_STEPS, total), len(envs), obs_dim, act_dim)
+    observations = np.stack([env.reset()[0] for env in envs])
+    step_nums = np.zeros(len(envs), dtype=np.int64)
+    for t in tqdm(range(total), desc=label, position=progress_position, leave=False, mininterval=1.0):
+        k = t % len(block.step_num)
+        if k == 0:
+            size = min(len(block.step_num), total - t)
+            for i, rng in enumerate(rngs):
+                block.noise[:size, i] = rng.uniform(low, high, size=(size, len(low)))
+        # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
+        expert = np.clip(demonstrator.act(observations, envs), low, high)
+        # float32 before stepping, so the action stored is exactly the action executed.
+        actions = mix_action(expert, epsilons[t][:, None], block.noise[k]).astype(np.float32)
+        block.observation[k], block.action[k], block.demonstrator_action[k] = observations, actions, expert
+        block.step_num[k] = step_nums
+        for i, env in enumerate(envs):
+            next_obs, reward, terminated, truncated, _ = env.step(actions[i])
+            block.reward[k, i] = reward
+            if terminated or truncated:
+                next_obs, _ = env.reset()
+                step_nums[i] = 0
+            else:
+                step_nums[i] += 1
+            observations[i] = next_obs
+        if k == len(block.step_num) - 1 or t == total - 1:
+            on_block(block, t - k, k + 1)
+
+
 def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[str]:
     """How an existing history `index` differs from what `plan` would make: ``"steps 1000 (now 500)"``.
     Files without recorded settings (older or published ones) are compared on their length alone."""
@@ -197,9 +247,12 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         found = {**history.attrs, "steps": history.num_steps}
         differences = [] if history.has_demonstrator_action else ["no demonstrator actions (now stored)"]
     recorded = plan.recorded_settings(index)
-    if "curvature" in found:  # a file of ours, its knots read as the schedule reads them (none: the power law)
-        found["knots"] = list(NoiseSchedule.from_recorded(found).knots)
-        recorded.setdefault("knots", [])
+    if "curvature" in found:  # a file of ours, its schedule read as the schedule reads it (no knots: the power law)
+        schedule = NoiseSchedule.from_recorded(found)
+        found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
+        recorded.setdefault("pilot_steps", 0)
+        if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare
+            recorded.setdefault("knots", [])
     return differences + [f"{key} {found[key]!r} (now {value!r})" for key, value in recorded.items()
                           if key in found and found[key] != value]
 

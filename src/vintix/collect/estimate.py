@@ -4,7 +4,7 @@ Steps and histories come from the plans. Disk size follows from the format: ever
 observation, the action, the demonstrator's action, the reward and the step number (4 bytes each),
 in checksummed chunks of up to `CHECKSUM_CHUNK_ROWS` rows allocated whole, plus about 16 kB of HDF5
 metadata per step group. Time comes from the measured rates table (`vintix bench collect --out`):
-each batch takes its steps over the task's collector rate, and batches go to `workers` processes
+each batch takes its steps (and its pilots') over the task's collector rate, and batches go to `workers` processes
 in the order `collect` submits them, each taken by the first worker free. A task without a
 measured collector rate (no demonstrator yet) is estimated from its raw env rate and the median
 collector/raw ratio of the tasks that have one, and marked as such.
@@ -35,6 +35,8 @@ class TaskEstimate:
     task: str
     histories: int
     steps_per_history: int
+    pilot_steps: int
+    """Steps each history's pilot plays before it (not stored; 0: none)."""
     batches: list[int]
     """Histories in each batch."""
     bytes: int
@@ -49,7 +51,7 @@ class TaskEstimate:
 
     @property
     def batch_seconds(self) -> list[float]:
-        return [n * self.steps_per_history / self.steps_per_s for n in self.batches]
+        return [n * (self.pilot_steps + self.steps_per_history) / self.steps_per_s for n in self.batches]
 
 
 def history_bytes(spec: TaskSpec, steps: int) -> int:
@@ -82,7 +84,8 @@ def estimate_plans(plans: Sequence[CollectionPlan], rates: dict[str, CollectBenc
     for plan in plans:
         spec = get_task(plan.task)
         steps_per_s, measured = collector_rate(spec.name, rates)
-        estimates.append(TaskEstimate(spec.name, plan.histories, plan.steps, [len(b) for b in batches(plan)],
+        estimates.append(TaskEstimate(spec.name, plan.histories, plan.steps, plan.schedule.pilot_steps,
+                                      [len(b) for b in batches(plan)],
                                       plan.histories * history_bytes(spec, plan.steps), steps_per_s, measured))
     return estimates
 

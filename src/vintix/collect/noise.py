@@ -30,6 +30,10 @@ class NoiseSchedule:
     knots: tuple[float, ...] = ()
     """ε at evenly spaced points of the noised part of the history, from 1 down to 0, instead of the
     curvature (`fit_knots` places them so the expected return rises linearly); empty: the power law."""
+    pilot_steps: int = 0
+    """Steps the demonstrator plays under linear decay on each history's own env before the history
+    (not stored), to fit that history's knots; for tasks whose variants answer ε differently (Meta-World
+    goals). 0: no pilot, one schedule for every history."""
 
     def __post_init__(self) -> None:
         check_field_types(self, ValueError)  # recipes are YAML: "fast" must not reach a comparison
@@ -37,6 +41,11 @@ class NoiseSchedule:
             raise ValueError(f"noise schedule curvature p must be > 0, got {self.curvature}")
         if not 0 <= self.noise_free_fraction <= 1:
             raise ValueError(f"noise_free_fraction f must lie in [0, 1], got {self.noise_free_fraction}")
+        if self.pilot_steps < 0:
+            raise ValueError(f"noise schedule pilot_steps must be >= 0, got {self.pilot_steps}")
+        if self.pilot_steps and self.curvature != 1:
+            raise ValueError("give noise schedule pilot_steps or a curvature, not both (the pilot fits knots, "
+                             "which replace the power law)")
         if self.knots:
             knots = np.asarray(self.knots, dtype=np.float64)
             if len(knots) < 2 or knots[0] != 1 or knots[-1] != 0 or np.any(np.diff(knots) > 0):
@@ -59,21 +68,25 @@ class NoiseSchedule:
         return np.where(progress <= 1, noised, 0.0)
 
     def recorded(self) -> dict[str, Any]:
-        """The schedule as a history file records it (root attributes; knots only when it has them)."""
+        """The schedule as a history file records it (root attributes; knots and pilot only when it has them)."""
         settings: dict[str, Any] = {"curvature": self.curvature, "noise_free_fraction": self.noise_free_fraction}
-        return settings | ({"knots": list(self.knots)} if self.knots else {})
+        settings |= {"knots": list(self.knots)} if self.knots else {}
+        return settings | ({"pilot_steps": self.pilot_steps} if self.pilot_steps else {})
 
     @classmethod
     def from_recorded(cls, attrs: Mapping[str, Any]) -> NoiseSchedule:
         """The schedule a history file records (see `recorded`)."""
         return cls(float(attrs["curvature"]), float(attrs["noise_free_fraction"]),
-                   tuple(float(k) for k in np.ravel(attrs.get("knots", []))))
+                   tuple(float(k) for k in np.ravel(attrs.get("knots", []))), int(attrs.get("pilot_steps", 0)))
 
 
-def mix_action(expert: np.ndarray, epsilon: float, noise: np.ndarray) -> np.ndarray:
-    """`(1 − ε)·expert + ε·u` for `noise` u drawn uniformly inside the action bounds; with the expert
-    action inside them too, the blend (a convex combination) stays inside."""
-    return (1 - epsilon) * expert + epsilon * noise
+def mix_action(expert: np.ndarray, epsilon: float | np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """`(1 − ε)·expert + ε·u` for `noise` u drawn uniformly inside the action bounds (ε a number, or one
+    per row as a column); with the expert action inside them too, the blend (a convex combination)
+    stays inside."""
+    # (1 − ε) in the expert's precision, as numpy multiplies a float32 array by a Python float: a
+    # per-row ε then gives the same bytes as the one-number ε of histories collected before it.
+    return np.asarray(1 - epsilon, dtype=expert.dtype) * expert + epsilon * noise
 
 
 def fit_knots(epsilons: np.ndarray, returns: np.ndarray, steps: np.ndarray, count: int = 11,

@@ -9,6 +9,7 @@
       reach-v3: {}
       door-open-v3: {curvature: 2.0}
       InvertedPendulum-v5: {knots: [1.0, 0.4, 0.3, 0.0]}   # see `vintix data fit-schedule`
+      handle-pull-v3: {pilot_steps: 30000}   # knots fitted per history to a pilot on its own goal
       metaworld: {}      # a domain or split name expands to all its tasks
 
 Shipped recipes (`vintix collect --recipe NAME`): see `src/vintix/collect/recipes/`.
