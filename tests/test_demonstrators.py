@@ -18,8 +18,8 @@ from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_ref
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
 from vintix.demonstrators.trained import shipped_weights_dir
 from vintix.demonstrators import training
-from vintix.demonstrators.training import (DemonstratorRecipe, default_state_dir, recipe_for, train_demonstrator,
-                                           unfinished_runs)
+from vintix.demonstrators.training import (DemonstratorRecipe, default_state_dir, evaluate_unfinished_run, recipe_for,
+                                           train_demonstrator, unfinished_runs)
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
 
@@ -97,8 +97,12 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     assert (unfinished.group, unfinished.algorithm, unfinished.steps, unfinished.budget) == (
         "mujoco-invertedpendulum", "SAC", 70, 120)
     assert unfinished.recent_return is not None and unfinished.recent_return > 0 and unfinished.seconds_left() > 0
-    listed = CliRunner().invoke(app, ["demonstrator", "runs"])
+    listed = CliRunner().invoke(app, ["demonstrator", "runs", "--episodes", "2"])
     assert listed.exit_code == 0 and "mujoco-invertedpendulum" in listed.output and "70 / 120" in listed.output
+    assert "deterministic return (2 episodes)" in listed.output and "InvertedPendulum-v5: " in listed.output
+    task, returns = evaluate_unfinished_run(unfinished, episodes=2)
+    assert task == "InvertedPendulum-v5" and len(returns) == 2 and np.all(returns >= 1)  # whole episodes played
+    np.testing.assert_array_equal(evaluate_unfinished_run(unfinished, episodes=2)[1], returns)  # deterministic
     with pytest.raises(VintixError, match="unfinished run with other settings"):
         train_demonstrator(task, timesteps=200, **run)
     started = RecordStart()

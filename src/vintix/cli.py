@@ -330,21 +330,29 @@ def demonstrator_list() -> None:
 
 
 @demonstrator_app.command("runs")
-def demonstrator_runs() -> None:
+def demonstrator_runs(
+    episodes: Annotated[int, typer.Option(min=0, help="also play this many deterministic episodes of each run's "
+                                          "saved policy (0: none; scored as `demonstrator eval` scores)")] = 0,
+) -> None:
     """Unfinished demonstrator trainings saved in the cache: how far each got, how it does, time left."""
-    from vintix.demonstrators.training import training_runs_dir, unfinished_runs
+    from vintix.demonstrators.training import evaluate_unfinished_run, training_runs_dir, unfinished_runs
 
     runs = unfinished_runs()
     if not runs:
         console.print(f"no unfinished demonstrator training under {training_runs_dir()}")
         return
     result = Table(title="unfinished demonstrator trainings (resume one with `vintix demonstrator train --task TASK`)")
-    for column in ("group", "algorithm", "seed", "steps", "hours trained", "hours left", "recent training return"):
+    columns = ["group", "algorithm", "seed", "steps", "hours trained", "hours left", "recent training return"]
+    for column in columns + ([f"deterministic return ({episodes} episodes)"] if episodes else []):
         result.add_column(column, justify="left" if column in ("group", "algorithm") else "right")
     for run in runs:
         recent = "—" if run.recent_return is None else f"{run.recent_return:,.1f}"
-        result.add_row(run.group, run.algorithm, str(run.seed), f"{run.steps:,} / {run.budget:,}",
-                       f"{run.train_seconds / 3600:.1f}", f"{run.seconds_left() / 3600:.1f}", recent)
+        row = [run.group, run.algorithm, str(run.seed), f"{run.steps:,} / {run.budget:,}",
+               f"{run.train_seconds / 3600:.1f}", f"{run.seconds_left() / 3600:.1f}", recent]
+        if episodes:
+            task, returns = evaluate_unfinished_run(run, episodes)
+            row.append(f"{task}: {_score(float(returns.mean()), float(returns.std()))}")
+        result.add_row(*row)
     console.print(result)
     console.print(f"saved under {training_runs_dir()}; the recent return is the mean of the last 100 training "
                   "episodes, exploration included (`vintix demonstrator eval` scores a finished one)")

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import shutil
 import signal
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -44,7 +45,8 @@ from stable_baselines3.common.type_aliases import MaybeCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from vintix.atomic import atomic_write_text
-from vintix.demonstrators.trained import ALGORITHMS, save_trained_policy, shipped_weights_dir
+from vintix.demonstrators.scores import episode_returns
+from vintix.demonstrators.trained import ALGORITHMS, TrainedDemonstrator, save_trained_policy, shipped_weights_dir
 from vintix.errors import VintixError
 from vintix.tasks import get_task, list_tasks, make_env
 from vintix.userdirs import user_cache_dir
@@ -213,6 +215,27 @@ def unfinished_runs(root: Path | None = None) -> list[UnfinishedRun]:
                                       info["num_timesteps"], plan["timesteps"], info["train_seconds"],
                                       info.get("recent_return")))
     return runs
+
+
+def evaluate_unfinished_run(run: UnfinishedRun, episodes: int, seed: int = 0) -> tuple[str, np.ndarray]:
+    """(task, returns) of `episodes` deterministic episodes of the policy in `run`'s newest save, on the
+    first task of its group: its acting weights are exported as they would ship, then scored as
+    `vintix demonstrator eval` scores a shipped demonstrator (training returns include exploration)."""
+    found = _newest_state(run.folder)
+    if found is None:
+        raise VintixError(f"{run.folder} holds no complete saved state to evaluate")
+    state = found[0]
+    spec = list_tasks(group=run.group)[0]
+    model = ALGORITHMS[run.algorithm].load(state / "model.zip", device="cpu")
+    vec_normalize = None
+    if (state / "vecnormalize.pkl").is_file():
+        venv = DummyVecEnv([partial(make_env, spec.name)])
+        vec_normalize = VecNormalize.load(str(state / "vecnormalize.pkl"), venv)
+        venv.close()
+    with tempfile.TemporaryDirectory() as exported:
+        save_trained_policy(model, vec_normalize, run.group, Path(exported), {})
+        demonstrator = TrainedDemonstrator(spec, Path(exported))
+    return spec.name, episode_returns(spec.name, demonstrator, episodes, seed)
 
 
 class _SaveEvery(BaseCallback):
