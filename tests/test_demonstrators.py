@@ -50,8 +50,21 @@ def test_trained_policy_round_trips_through_weights_only_files(tmp_path, task):
     assert actions.shape == (2, get_task(task).act_dim)
     assert np.all(actions >= env.action_space.low) and np.all(actions <= env.action_space.high)
     np.testing.assert_array_equal(actions, demonstrator.act(observations, [env, env]))  # deterministic
-    expected, _ = demonstrator.policy.predict(demonstrator.normalize(observations), deterministic=True)
+    expected, _ = demonstrator.policy.predict(demonstrator.policy_input(observations), deterministic=True)
     np.testing.assert_allclose(actions, expected, rtol=1e-5, atol=1e-5)  # the numpy forward is SB3's policy
+
+
+def test_a_policy_trained_on_the_first_observations_acts_on_them_alone(tmp_path):
+    recipe = replace(small_recipe("Ant-v5"), observation_dims=27)  # joint positions and velocities, no contact forces
+    train_demonstrator("Ant-v5", timesteps=120, out=tmp_path, progress_bar=False, recipe=recipe)
+    demonstrator = TrainedDemonstrator(get_task("Ant-v5"), tmp_path)
+    assert demonstrator.metadata["observation_dims"] == 27 and demonstrator.policy.observation_space.shape == (27,)
+    env = make_env("Ant-v5", seed=0)
+    observations = np.stack([env.reset()[0]] * 2)
+    observations[1, 27:] = 0.5  # other contact forces, same joints
+    actions = demonstrator.act(observations, [env, env])
+    assert actions.shape == (2, 8)
+    np.testing.assert_array_equal(actions[0], actions[1])
 
 
 class InterruptAt(BaseCallback):
@@ -105,6 +118,9 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     np.testing.assert_array_equal(evaluate_unfinished_run(unfinished, episodes=2)[1], returns)  # deterministic
     with pytest.raises(VintixError, match="unfinished run with other settings"):
         train_demonstrator(task, timesteps=200, **run)
+    saved_file = next(state.glob("steps-*/state.json"))  # as a vintix from before observation_dims saved it:
+    saved["plan"]["recipe"].pop("observation_dims")      # a recipe field added since then takes its default
+    saved_file.write_text(json.dumps(saved))
     started = RecordStart()
     path = train_demonstrator(task, callback=started, **run)
     steps_done, transitions = started.start
@@ -141,7 +157,7 @@ def test_demonstrator_acts_like_sb3_predict(task):
     assert demonstrator._mlp is not None  # the fast path, not predict
     env = make_env(task, seed=0)
     observations = np.stack([env.reset()[0]] + [np.clip(env.observation_space.sample(), -5, 5) for _ in range(7)])
-    expected, _ = demonstrator.policy.predict(demonstrator.normalize(observations), deterministic=True)
+    expected, _ = demonstrator.policy.predict(demonstrator.policy_input(observations), deterministic=True)
     np.testing.assert_allclose(demonstrator.act(observations, [env] * 8), expected, rtol=1e-5, atol=1e-5)
 
 
@@ -149,7 +165,7 @@ def test_industrial_benchmark_policy_normalizes_observations_like_its_training()
     demonstrator = load_demonstrator("industrial-benchmark-50-v1")
     assert demonstrator.metadata["env_options"] == {"reward_type": "delta"}
     raw = np.array([[50.0, 40.0, 60.0, 50.0, 30.0, 150.0]], dtype=np.float32)
-    scaled = demonstrator.normalize(raw)
+    scaled = demonstrator.policy_input(raw)
     assert np.all(np.abs(scaled) < 10) and not np.allclose(scaled, raw)
 
 

@@ -85,7 +85,8 @@ class TrainedDemonstrator:
         self.metadata = json.loads(meta_path.read_text())
         tensors = load_file(str(tensors_path))
         env = make_env(spec.name)
-        observation_space, action_space = env.observation_space, env.action_space
+        self.observation_dims = int(self.metadata.get("observation_dims", 0))
+        observation_space, action_space = observation_view(env.observation_space, self.observation_dims), env.action_space
         env.close()
         policy_class = ALGORITHMS[self.metadata["algorithm"]].policy_aliases["MlpPolicy"]
         self.policy: BasePolicy = policy_class(
@@ -97,8 +98,11 @@ class TrainedDemonstrator:
         modules = deterministic_actor(self.policy)
         self._mlp = None if modules is None else NumpyMlp.from_modules(modules)
 
-    def normalize(self, observations: np.ndarray) -> np.ndarray:
-        """What `VecNormalize.normalize_obs` did during training, from the saved statistics."""
+    def policy_input(self, observations: np.ndarray) -> np.ndarray:
+        """What the policy sees of `observations`: their first `observation_dims` dimensions if it was
+        trained on those only, scaled as `VecNormalize.normalize_obs` did in training (saved statistics)."""
+        if self.observation_dims:
+            observations = observations[:, :self.observation_dims]
         if self.obs_mean is None:
             return observations
         settings = self.metadata["obs_normalization"]
@@ -111,13 +115,29 @@ class TrainedDemonstrator:
         builds a distribution object on each call, and torch's per-op dispatch alone took longer than
         the simulator's step in a collection loop."""
         if self._mlp is None:
-            actions, _ = self.policy.predict(self.normalize(np.asarray(observations)), deterministic=True)
+            actions, _ = self.policy.predict(self.policy_input(np.asarray(observations)), deterministic=True)
             return actions
-        actions = self._mlp(np.asarray(self.normalize(np.asarray(observations)), dtype=np.float32))
+        actions = self._mlp(np.asarray(self.policy_input(np.asarray(observations)), dtype=np.float32))
         if self.policy.squash_output:  # tanh-squashed policies act in [-1, 1]
             return self.policy.unscale_action(actions)
         space = self.policy.action_space
         return np.clip(actions, space.low, space.high)
+
+
+def observation_view(space: gym.Space, dims: int) -> gym.Space:
+    """The space of the first `dims` dimensions of a Box observation space (0: the whole space)."""
+    if not dims:
+        return space
+    if not isinstance(space, gym.spaces.Box) or len(space.shape) != 1 or not 0 < dims <= space.shape[0]:
+        raise VintixError(f"cannot view the first {dims} dimensions of observation space {space}")
+    return gym.spaces.Box(space.low[:dims], space.high[:dims], dtype=space.dtype)
+
+
+def first_observations(env: gym.Env, dims: int) -> gym.Env:
+    """`env` observed through its first `dims` observation dimensions (0: unchanged)."""
+    if not dims:
+        return env
+    return gym.wrappers.TransformObservation(env, lambda obs: obs[:dims], observation_view(env.observation_space, dims))
 
 
 def deterministic_actor(policy: BasePolicy) -> list[torch.nn.Module] | None:

@@ -28,7 +28,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -46,7 +46,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from vintix.atomic import atomic_write_text
 from vintix.demonstrators.scores import episode_returns
-from vintix.demonstrators.trained import ALGORITHMS, TrainedDemonstrator, save_trained_policy, shipped_weights_dir
+from vintix.demonstrators.trained import (ALGORITHMS, TrainedDemonstrator, first_observations, save_trained_policy,
+                                          shipped_weights_dir)
 from vintix.errors import VintixError
 from vintix.tasks import get_task, list_tasks, make_env
 from vintix.userdirs import user_cache_dir
@@ -68,6 +69,8 @@ class DemonstratorRecipe:
     """Train behind VecNormalize (its statistics ship with the weights)."""
     env_options: dict[str, Any] = field(default_factory=dict)
     """Options for `make_env` during training only (evaluation uses the task as registered)."""
+    observation_dims: int = 0
+    """Train (and act) on the first N observation dimensions only; 0: all of them."""
     action_noise_std: float = 0.0
     """Std of the Gaussian noise TD3 explores with, on actions scaled to [-1, 1] (SB3's NormalActionNoise);
     0: none (SAC and PPO explore through their own stochastic policies)."""
@@ -86,8 +89,11 @@ RECIPES: dict[str, DemonstratorRecipe] = {
     "mujoco-halfcheetah": DemonstratorRecipe("SAC", 300_000, {"learning_starts": 10_000}),
     "mujoco-walker2d": DemonstratorRecipe("SAC", 500_000),
     # The RL Zoo's settings, whose benchmark (v3 envs, 1M steps) has TD3 at 5814 on Ant and SAC at 4616;
-    # 0.8 of the paper's Ant expert is 5002.
-    "mujoco-ant": DemonstratorRecipe("TD3", 1_000_000, {"learning_starts": 10_000}, action_noise_std=0.1),
+    # 0.8 of the paper's Ant expert is 5002. Zoo's v3 Ant observed zero contact forces; on Ant-v5's 78 real
+    # ones TD3 learned 2-3x slower than on its 27 joint positions and velocities alone (seed 1, mean
+    # training return at 100k / 174k steps: 228 / about 420 against 600 / 1,232; README).
+    "mujoco-ant": DemonstratorRecipe("TD3", 1_000_000, {"learning_starts": 10_000}, observation_dims=27,
+                                     action_noise_std=0.1),
     # The RL Zoo trains SAC on Humanoid for 2M steps after 10k random ones (6232 in its benchmark; 0.8 of
     # the paper's expert is 6045).
     "mujoco-humanoid": DemonstratorRecipe("SAC", 2_000_000, {"learning_starts": 10_000}),
@@ -110,8 +116,8 @@ def recipe_for(task: str) -> DemonstratorRecipe:
     return RECIPES[spec.group]
 
 
-def _monitored_env(task: str, options: dict[str, Any]) -> gym.Env:
-    return Monitor(make_env(task, **options))
+def _monitored_env(task: str, options: dict[str, Any], observation_dims: int) -> gym.Env:
+    return Monitor(first_observations(make_env(task, **options), observation_dims))
 
 
 def training_runs_dir() -> Path:
@@ -128,6 +134,15 @@ def _plan(group: str, budget: int, seed: int, recipe: DemonstratorRecipe) -> dic
     """What a saved state must match to be resumed by a run: group, budget, seed and recipe."""
     plan = {"group": group, "timesteps": budget, "seed": seed, "recipe": asdict(recipe)}
     return dict(json.loads(json.dumps(plan)))  # tuples as lists, as they come back from state.json
+
+
+def _saved_plan(info: dict[str, Any]) -> dict[str, Any]:
+    """The plan a state was saved with, recipe fields added to `DemonstratorRecipe` since then at their
+    defaults: a run saved by an older vintix stays resumable."""
+    defaults = {f.name: f.default if f.default is not MISSING else f.default_factory()  # type: ignore[misc]
+                for f in fields(DemonstratorRecipe) if f.default is not MISSING or f.default_factory is not MISSING}
+    plan = info["plan"]
+    return {**plan, "recipe": {**json.loads(json.dumps(defaults)), **plan["recipe"]}}
 
 
 class TrainingInterrupted(KeyboardInterrupt):
@@ -171,7 +186,7 @@ def latest_training_state(directory: Path, plan: dict[str, Any]) -> tuple[Path, 
     if found is None:
         return None
     state, info = found
-    if info["plan"] != plan:
+    if _saved_plan(info) != plan:
         raise VintixError(
             f"{directory} holds an unfinished run with other settings ({info['plan']}); re-run with those "
             f"settings to finish it, or delete the folder to start this one ({plan})"
@@ -196,6 +211,8 @@ class UnfinishedRun:
     recent_return: float | None
     """Mean return of its last (up to 100) training episodes before the save, exploration included;
     None when no episode had ended since the run was last started."""
+    observation_dims: int = 0
+    """The observation dimensions its policy sees (`DemonstratorRecipe.observation_dims`; 0: all)."""
 
     def seconds_left(self) -> float:
         """Training time still needed at the pace so far."""
@@ -210,10 +227,10 @@ def unfinished_runs(root: Path | None = None) -> list[UnfinishedRun]:
         found = _newest_state(folder)
         if found is not None:
             info = found[1]
-            plan = info["plan"]
+            plan = _saved_plan(info)
             runs.append(UnfinishedRun(folder, plan["group"], plan["recipe"]["algorithm"], plan["seed"],
                                       info["num_timesteps"], plan["timesteps"], info["train_seconds"],
-                                      info.get("recent_return")))
+                                      info.get("recent_return"), plan["recipe"]["observation_dims"]))
     return runs
 
 
@@ -229,11 +246,11 @@ def evaluate_unfinished_run(run: UnfinishedRun, episodes: int, seed: int = 0) ->
     model = ALGORITHMS[run.algorithm].load(state / "model.zip", device="cpu")
     vec_normalize = None
     if (state / "vecnormalize.pkl").is_file():
-        venv = DummyVecEnv([partial(make_env, spec.name)])
+        venv = DummyVecEnv([partial(_monitored_env, spec.name, {}, run.observation_dims)])
         vec_normalize = VecNormalize.load(str(state / "vecnormalize.pkl"), venv)
         venv.close()
     with tempfile.TemporaryDirectory() as exported:
-        save_trained_policy(model, vec_normalize, run.group, Path(exported), {})
+        save_trained_policy(model, vec_normalize, run.group, Path(exported), {"observation_dims": run.observation_dims})
         demonstrator = TrainedDemonstrator(spec, Path(exported))
     return spec.name, episode_returns(spec.name, demonstrator, episodes, seed)
 
@@ -321,7 +338,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     plan = _plan(spec.group, budget, seed, recipe)
     state_dir = state_dir or default_state_dir(spec.group, seed)
     found = latest_training_state(state_dir, plan)
-    venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options) for name in tasks])
+    venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options, recipe.observation_dims) for name in tasks])
     model, vec_normalize = _new_or_resumed(recipe, venv, seed, found[0] if found else None)
     seconds_before = found[1]["train_seconds"] if found else 0.0
     start = time.perf_counter()
@@ -350,6 +367,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     info = {"group": spec.group, "train_tasks": list(tasks), "timesteps": budget, "seed": seed,
             "train_seconds": round(seconds, 1), "hyperparameters": recipe.hyperparameters,
             "env_options": recipe.env_options, "command": command}
+    if recipe.observation_dims:
+        info["observation_dims"] = recipe.observation_dims
     if found:
         info["resumed_at"] = found[1]["num_timesteps"]
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
