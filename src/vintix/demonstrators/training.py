@@ -11,11 +11,12 @@ gamma 0.97, 1M steps, trained on the delta reward and scored on the classic one)
 single policy is trained on all 21 setpoints at once, one env each (the setpoint is its first
 observation), with 250 steps per env per rollout (5,250 per update, the paper's 2,500 per task).
 
-Training resumes: every few minutes (fewer when saving is slow), and on Ctrl-C or SIGTERM, the run saves the SB3 model, its replay
-buffer and its VecNormalize statistics (SB3's own save functions) under ``~/.cache/vintix/demonstrator-training``;
-re-running the same command continues from there. The episodes in progress restart and the RNG
-streams differ, so a resumed run is not bit-identical to an uninterrupted one. These are local,
-pickled working files; only the final weights ship, as safetensors.
+Training resumes: every few minutes (less often when saving is slow), and on Ctrl-C or SIGTERM, the
+run saves the SB3 model, its replay buffer and its VecNormalize statistics (SB3's own save functions)
+under ``~/.cache/vintix/demonstrator-training``; re-running the same command continues from there.
+The episodes in progress restart and the RNG streams differ, so a resumed run is not bit-identical to
+an uninterrupted one. These are local, pickled working files; only the final weights ship, as
+safetensors.
 """
 
 from __future__ import annotations
