@@ -165,6 +165,9 @@ def test_a_pilot_fits_each_history_its_own_knots_and_resumes_with_them(tmp_path)
         with pytest.raises(CollectionSettingsError, match="other settings") as error:
             collect(other, folder)
         assert difference in str(error.value)
+    with pytest.raises(CollectionError, match="reach-v3: a pilot of 50 steps completed 0 episode"):
+        collect(CollectionPlan("reach-v3", 1, 100, schedule=NoiseSchedule(pilot_steps=50)), tmp_path / "short")
+    assert not list((tmp_path / "short").rglob("*.h5"))
     with pytest.raises(CollectionError, match="give knots or pilot_steps, not both"):
         CollectionPlan("reach-v3", 1, 100, NoiseSchedule(knots=(1.0, 0.0), pilot_steps=100))
 

@@ -70,7 +70,8 @@ def test_a_pilot_whose_return_does_not_fall_with_noise_gets_linear_decay():
     rising = pilot_knots(epsilon, (1 - epsilon).astype(np.float32), step_num)  # the demonstrator earns more with less noise
     assert rising[0] == 1.0 and rising[-1] == 0.0 and len(rising) == 11
     assert pilot_knots(epsilon, np.zeros(1000, np.float32), step_num) == (1.0, 0.0)  # a goal it never scores on
-    assert pilot_knots(epsilon, np.ones(1000, np.float32), np.arange(1000)) == (1.0, 0.0)  # no complete episode
+    with pytest.raises(ValueError, match="completed 0 episode\\(s\\), too few to fit knots to"):
+        pilot_knots(epsilon, np.ones(1000, np.float32), np.arange(1000))  # one episode, cut by the pilot's end
 
 
 def test_fit_schedules_reads_each_episode_noise_from_the_histories_of_a_real_collection(tmp_path):

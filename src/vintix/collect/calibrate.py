@@ -48,11 +48,15 @@ def episode_noise(history: LearningHistory) -> tuple[np.ndarray, np.ndarray, np.
 def pilot_knots(epsilon: np.ndarray, reward: np.ndarray, step_num: np.ndarray) -> tuple[float, ...]:
     """Knots for one history from its pilot run (ε, reward and step number per step, starting an episode):
     `fit_knots` on its complete episodes; linear decay, (1, 0), when its return does not fall with noise
-    (a goal the demonstrator fails even noise-free) or it completed no episode."""
+    (a goal the demonstrator fails even noise-free). A pilot too short for two episodes is an error."""
     starts = np.flatnonzero(step_num == 0)
     returns = np.add.reduceat(reward.astype(np.float64), starts)
+    episodes = complete_episodes(epsilon, starts, returns)
+    if len(episodes[1]) < 2:
+        raise ValueError(f"a pilot of {len(epsilon):,} steps completed {len(episodes[1])} episode(s), too few to fit "
+                         "knots to: give pilot_steps worth many episodes (the paper recipe gives Meta-World 30,000)")
     try:
-        return fit_knots(*complete_episodes(epsilon, starts, returns))
+        return fit_knots(*episodes)
     except ValueError:
         return (1.0, 0.0)
 

@@ -196,7 +196,10 @@ def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrat
         reward[start:start + rows], step_num[start:start + rows] = block.reward[:rows], block.step_num[:rows]
 
     _play(envs, demonstrator, np.repeat(epsilon[:, None], len(envs), axis=1), rngs, label, progress_position, keep)
-    return [replace(plan.schedule, knots=pilot_knots(epsilon, reward[:, i], step_num[:, i])) for i in range(len(envs))]
+    try:
+        return [replace(plan.schedule, knots=pilot_knots(epsilon, reward[:, i], step_num[:, i])) for i in range(len(envs))]
+    except ValueError as error:
+        raise CollectionError(f"{plan.task}: {error}") from error
 
 
 def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray, rngs: Sequence[np.random.Generator],
