@@ -518,6 +518,11 @@ for name, recipe, needle in [
     ("knots and a curvature", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0], curvature: 2}\n",
      "not both"),
     ("knots are text", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: steep}\n", "knots must be"),
+    ("knots and a pilot", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0], pilot_steps: 500}\n",
+     "not both"),
+    ("negative pilot", "tasks:\n  reach-v3: {histories: 1, steps: 10, pilot_steps: -1}\n", "pilot_steps must be >= 0"),
+    ("pilot shorter than two episodes", "tasks:\n  reach-v3: {histories: 1, steps: 10, pilot_steps: 150}\n",
+     "too few to fit knots to"),
 ]:
     slug = name.replace(" ", "-")
     cli_error("collect", f"recipe: {name}", lambda r=recipe, f=f"{slug}.yaml": [
