@@ -169,7 +169,10 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
         writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim, demonstrator_actions=True,
                                          attrs=plan.recorded_settings(i) | schedule.recorded())
                    for i, schedule in zip(indices, schedules)]
-        epsilons = np.stack([schedule.epsilon(np.arange(plan.steps), plan.steps) for schedule in schedules], axis=1)
+        # One column per history only when pilots gave them schedules of their own: a 1M-step batch of 16
+        # would otherwise hold 16 copies of the same 8 MB column.
+        distinct = schedules if plan.schedule.pilot_steps else schedules[:1]
+        epsilons = np.stack([schedule.epsilon(np.arange(plan.steps), plan.steps) for schedule in distinct], axis=1)
         _play(envs, demonstrator, epsilons, [s.noise for s in seeds], label, progress_position,
               lambda block, start, rows: block.write(rows, writers))
         return [writer.close() for writer in writers]
@@ -195,7 +198,7 @@ def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrat
     def keep(block: _Block, start: int, rows: int) -> None:
         reward[start:start + rows], step_num[start:start + rows] = block.reward[:rows], block.step_num[:rows]
 
-    _play(envs, demonstrator, np.repeat(epsilon[:, None], len(envs), axis=1), rngs, label, progress_position, keep)
+    _play(envs, demonstrator, epsilon[:, None], rngs, label, progress_position, keep)
     try:
         return [replace(plan.schedule, knots=pilot_knots(epsilon, reward[:, i], step_num[:, i])) for i in range(len(envs))]
     except ValueError as error:
@@ -204,8 +207,9 @@ def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrat
 
 def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray, rngs: Sequence[np.random.Generator],
           label: str, progress_position: int, on_block: Callable[[_Block, int, int], None]) -> None:
-    """Play `envs` from a reset for ``len(epsilons)`` steps, env i at noise ``epsilons[t, i]``, handing
-    each full block of rows to ``on_block(block, first step, rows)``.
+    """Play `envs` from a reset for ``len(epsilons)`` steps, env i at noise ``epsilons[t, i]`` (or all at
+    ``epsilons[t, 0]`` when it has one column), handing each full block of rows to
+    ``on_block(block, first step, rows)``.
 
     The envs step in lockstep: one batched demonstrator call per step, the noise mixed in for all
     histories at once, rows buffered for `BLOCK_STEPS` steps. Each history's noise still comes from
