@@ -130,6 +130,34 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     assert not state.exists() and unfinished_runs() == []
 
 
+def pendulum_sac(**fields) -> DemonstratorRecipe:
+    """SAC on InvertedPendulum, small enough to train 200 steps in a test."""
+    return DemonstratorRecipe("SAC", 200, {"learning_starts": 20, "batch_size": 16, "buffer_size": 1000}, **fields)
+
+
+def test_a_run_with_a_target_score_stops_at_the_first_check_that_reaches_it(tmp_path):
+    task = "InvertedPendulum-v5"
+    with pytest.raises(KeyboardInterrupt):
+        train_demonstrator(task, out=tmp_path, progress_bar=False, recipe=pendulum_sac(), callback=InterruptAt(70, "ctrl-c"))
+    lines = []  # a target decides when to stop, not how to train: the saved run resumes under it
+    path = train_demonstrator(task, out=tmp_path, progress_bar=False, recipe=pendulum_sac(stop_at_score=-100.0),
+                              report=lines.append)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert (meta["resumed_at"], meta["timesteps"]) == (70, 75)  # checks every 2.5 % of 200 steps: the first at 75
+    assert meta["stopped_at_score"]["step"] == 75 and meta["stopped_at_score"]["budget"] == 200
+    assert len(lines) == 1 and lines[0].startswith("step 75: InvertedPendulum-v5 ")
+    assert unfinished_runs() == []
+
+
+def test_scoring_along_training_does_not_change_what_it_learns(tmp_path):
+    task, lines = "InvertedPendulum-v5", []
+    plain = train_demonstrator(task, out=tmp_path / "plain", progress_bar=False, recipe=pendulum_sac())
+    scored = train_demonstrator(task, out=tmp_path / "scored", progress_bar=False,
+                                recipe=pendulum_sac(stop_at_score=100.0), report=lines.append)
+    assert len(lines) == 40 and "stopped_at_score" not in json.loads(scored.with_suffix(".json").read_text())
+    assert plain.read_bytes() == scored.read_bytes()  # same weights: the checks play their own envs
+
+
 def test_slow_saves_are_spaced_out_so_they_take_a_small_share_of_training(monkeypatch):
     clock = [0.0]
     monkeypatch.setattr(training.time, "perf_counter", lambda: clock[0])

@@ -251,12 +251,16 @@ def demonstrator_train(
     try:
         recipe = recipe_for(task)
         console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}")
-        path = train_demonstrator(task, timesteps, seed, out, callback=SayWhereItStarts())
+        path = train_demonstrator(task, timesteps, seed, out, callback=SayWhereItStarts(), report=console.print)
     except VintixError as error:
         raise _fail(error)
     except TrainingInterrupted as interrupted:
         console.print(str(interrupted))
         raise typer.Exit(130) from None
+    stopped = json.loads(path.with_suffix(".json").read_text()).get("stopped_at_score")
+    if stopped:
+        console.print(f"stopped at step {stopped['step']:,} of {stopped['budget']:,}: normalized score "
+                      f"{stopped['normalized_score']} ≥ {stopped['target']}")
     console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task {task}`")
 
 

@@ -172,7 +172,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
         for r in results:
             r.label = f"{r.label} ({r.folder.name})"
     figures = out / "figures"
-    lines = [f"# In-context evaluation report\n",
+    lines = ["# In-context evaluation report\n",
              f"Normalized score `(R − random) / (expert − random)` with the **{table}** reference table; "
              f"curves are IQMs over runs with percentile-bootstrap 95 % CIs; *converged* is the best "
              f"{plateau_shots}-shot plateau of a task's mean curve (paper §3).\n",
