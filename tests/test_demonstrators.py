@@ -117,16 +117,18 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     assert task == "InvertedPendulum-v5" and len(returns) == 2 and np.all(returns >= 1)  # whole episodes played
     np.testing.assert_array_equal(evaluate_unfinished_run(unfinished, episodes=2)[1], returns)  # deterministic
     with pytest.raises(VintixError, match="unfinished run with other settings"):
-        train_demonstrator(task, timesteps=200, **run)
+        train_demonstrator(task, out=tmp_path, progress_bar=False,
+                           recipe=replace(recipe, hyperparameters={**recipe.hyperparameters, "batch_size": 32}))
     saved_file = next(state.glob("steps-*/state.json"))  # as a vintix from before observation_dims saved it:
     saved["plan"]["recipe"].pop("observation_dims")      # a recipe field added since then takes its default
+    saved["plan"]["recipe"]["stop_at_score"] = 0.5       # one that says when to stop is not matched
     saved_file.write_text(json.dumps(saved))
     started = RecordStart()
-    path = train_demonstrator(task, callback=started, **run)
+    path = train_demonstrator(task, timesteps=150, callback=started, **run)  # a budget only says where to stop
     steps_done, transitions = started.start
     assert steps_done == 70 and 0 < transitions <= 70  # model and replay buffer came back
     meta = json.loads(path.with_suffix(".json").read_text())
-    assert (meta["resumed_at"], meta["timesteps"]) == (70, 120) and "obs_normalization" in meta
+    assert (meta["resumed_at"], meta["timesteps"]) == (70, 150) and "obs_normalization" in meta
     assert not state.exists() and unfinished_runs() == []
 
 

@@ -250,7 +250,8 @@ def demonstrator_train(
 
     try:
         recipe = recipe_for(task)
-        console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}")
+        until = "" if recipe.stop_at_score is None else f", or until it scores {recipe.stop_at_score} of the paper's expert"
+        console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}{until}")
         path = train_demonstrator(task, timesteps, seed, out, callback=SayWhereItStarts(), report=console.print)
     except VintixError as error:
         raise _fail(error)
