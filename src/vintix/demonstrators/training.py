@@ -83,11 +83,13 @@ class DemonstratorRecipe:
     0: none (SAC and PPO explore through their own stochastic policies)."""
     stop_at_score: float | None = None
     """Stop before the budget once the policy, scored as it would ship, reaches this score normalized by
-    the paper's random and expert returns (checked every `SCORE_EVERY` of the budget); None: never."""
+    the paper's random and expert returns (checked every `SCORE_EVERY` of `timesteps`, whatever budget a
+    run is given); None: never."""
 
 
 SCORE_EVERY = 0.025
-"""Share of the budget between two checks of `DemonstratorRecipe.stop_at_score`."""
+"""Share of a recipe's `timesteps` between two checks of `DemonstratorRecipe.stop_at_score`: a quick run
+(`--timesteps 5000`) of a long recipe is not slowed by checks every few steps."""
 SCORE_EPISODES, SCORE_SEED = 10, 1_000
 """Deterministic episodes of a check, on env seeds `SCORE_SEED + i`: none of them is one of the
 seeds `vintix demonstrator eval` reports, so a run that stops on a lucky check is not also scored on it."""
@@ -435,7 +437,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     if recipe.stop_at_score is not None:
         score = partial(score_as_shipped, model, vec_normalize, spec.group, recipe.observation_dims,
                         SCORE_EPISODES, SCORE_SEED)
-        stop = _StopAtScore(score, max(1, round(budget * SCORE_EVERY)), recipe.stop_at_score, report)
+        stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report)
         callbacks.append(stop)
     callbacks += [callback] if callback else []
     try:
