@@ -158,11 +158,15 @@ def default_state_dir(group: str, seed: int) -> Path:
     return training_runs_dir() / f"{group}-seed{seed}"
 
 
+def _training_fields(recipe: dict[str, Any]) -> dict[str, Any]:
+    """A recipe's fields (as a dict) less `_STOPPING_FIELDS`: what a saved run must match."""
+    return {name: value for name, value in recipe.items() if name not in _STOPPING_FIELDS}
+
+
 def _plan(group: str, budget: int, seed: int, recipe: DemonstratorRecipe) -> dict[str, Any]:
     """What a run records of itself (group, budget, seed, the recipe's training fields); a saved state
     must match all but the budget to be resumed (`latest_training_state`)."""
-    training = {name: value for name, value in asdict(recipe).items() if name not in _STOPPING_FIELDS}
-    plan = {"group": group, "timesteps": budget, "seed": seed, "recipe": training}
+    plan = {"group": group, "timesteps": budget, "seed": seed, "recipe": _training_fields(asdict(recipe))}
     return dict(json.loads(json.dumps(plan)))  # tuples as lists, as they come back from state.json
 
 
@@ -173,8 +177,7 @@ def _saved_plan(info: dict[str, Any]) -> dict[str, Any]:
                 for f in fields(DemonstratorRecipe) if f.name not in _STOPPING_FIELDS
                 and (f.default is not MISSING or f.default_factory is not MISSING)}
     plan = info["plan"]
-    training = {name: value for name, value in plan["recipe"].items() if name not in _STOPPING_FIELDS}
-    return {**plan, "recipe": {**json.loads(json.dumps(defaults)), **training}}
+    return {**plan, "recipe": {**json.loads(json.dumps(defaults)), **_training_fields(plan["recipe"])}}
 
 
 class TrainingInterrupted(KeyboardInterrupt):
