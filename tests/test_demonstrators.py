@@ -156,8 +156,22 @@ def test_scoring_along_training_does_not_change_what_it_learns(tmp_path):
     plain = train_demonstrator(task, out=tmp_path / "plain", progress_bar=False, recipe=pendulum_sac())
     scored = train_demonstrator(task, out=tmp_path / "scored", progress_bar=False,
                                 recipe=pendulum_sac(stop_at_score=100.0), report=lines.append)
-    assert len(lines) == 40 and "stopped_at_score" not in json.loads(scored.with_suffix(".json").read_text())
+    meta = json.loads(scored.with_suffix(".json").read_text())
+    assert len(lines) == 40 and "stopped_at_score" not in meta and meta["short_of_target"]["budget"] == 200
     assert plain.read_bytes() == scored.read_bytes()  # same weights: the checks play their own envs
+
+
+def test_a_run_that_ends_short_of_its_target_stays_saved_for_a_larger_budget(tmp_path):
+    task, lines, started = "InvertedPendulum-v5", [], RecordStart()
+    run = dict(out=tmp_path, progress_bar=False, recipe=pendulum_sac(stop_at_score=100.0), report=lines.append)
+    train_demonstrator(task, **run)
+    [unfinished] = unfinished_runs()
+    assert (unfinished.steps, unfinished.budget) == (200, 200) and len(lines) == 40
+    path = train_demonstrator(task, timesteps=210, callback=started, **run)
+    assert started.start[0] == 200 and len(lines) == 42  # went on, checking at 205 and 210
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert (meta["resumed_at"], meta["timesteps"], meta["short_of_target"]["budget"]) == (200, 210, 210)
+    assert [run.steps for run in unfinished_runs()] == [210]
 
 
 def test_slow_saves_are_spaced_out_so_they_take_a_small_share_of_training(monkeypatch):

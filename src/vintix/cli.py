@@ -258,10 +258,14 @@ def demonstrator_train(
     except TrainingInterrupted as interrupted:
         console.print(str(interrupted))
         raise typer.Exit(130) from None
-    stopped = json.loads(path.with_suffix(".json").read_text()).get("stopped_at_score")
-    if stopped:
+    meta = json.loads(path.with_suffix(".json").read_text())
+    if stopped := meta.get("stopped_at_score"):
         console.print(f"stopped at step {stopped['step']:,} of {stopped['budget']:,}: normalized score "
                       f"{stopped['normalized_score']} ≥ {stopped['target']}")
+    if short := meta.get("short_of_target"):
+        console.print(f"[yellow]the budget of {short['budget']:,} steps ended below the target score "
+                      f"{short['target']}[/]: the run stays saved under {short['state']}; a larger --timesteps "
+                      "goes on from there")
     console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task {task}`")
 
 

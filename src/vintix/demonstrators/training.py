@@ -416,7 +416,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     replaces the group's recipe (to try other hyperparameters). The resumable state is saved every
     `save_minutes` (less often when a save takes over 2 % of that) and on Ctrl-C or SIGTERM under
     `state_dir` (default: `default_state_dir`); a run finds and continues it, and deletes it once the
-    weights are written. `callback`: more SB3 callbacks; `report`: gets a line per score check of a
+    weights are written, unless the recipe's `stop_at_score` was not reached: then the state stays, so a
+    larger budget can continue the run. `callback`: more SB3 callbacks; `report`: gets a line per score check of a
     recipe with `stop_at_score`.
     """
     spec = get_task(task)
@@ -466,8 +467,14 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
         info["observation_dims"] = recipe.observation_dims
     if found:
         info["resumed_at"] = found[1]["num_timesteps"]
+    short_of_target = stop is not None and stop.reached is None
     if stop is not None and stop.reached:
         info["stopped_at_score"] = {**stop.reached, "budget": budget}
+    if short_of_target:
+        info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget, "state": str(state_dir)}
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
-    shutil.rmtree(state_dir, ignore_errors=True)
+    if short_of_target:
+        save_state()  # a larger budget (`--timesteps`) goes on from here rather than from scratch
+    else:
+        shutil.rmtree(state_dir, ignore_errors=True)
     return path
