@@ -167,10 +167,14 @@ def test_a_run_that_ends_short_of_its_target_stays_saved_for_a_larger_budget(tmp
     train_demonstrator(task, **run)
     [unfinished] = unfinished_runs()
     assert (unfinished.steps, unfinished.budget) == (200, 200) and len(lines) == 40
+    assert [check["step"] for check in unfinished.score_checks] == list(range(5, 201, 5))
+    listed = CliRunner().invoke(app, ["demonstrator", "runs"])
+    assert listed.exit_code == 0 and "40 score checks: last step 200: " in listed.output
     path = train_demonstrator(task, timesteps=210, callback=started, **run)
     assert started.start[0] == 200 and len(lines) == 42  # went on, checking at 205 and 210
     meta = json.loads(path.with_suffix(".json").read_text())
     assert (meta["resumed_at"], meta["timesteps"], meta["short_of_target"]["budget"]) == (200, 210, 210)
+    assert [check["step"] for check in meta["score_checks"]] == list(range(5, 211, 5))  # the whole curve
     assert [run.steps for run in unfinished_runs()] == [210]
 
 

@@ -7,7 +7,7 @@ import io
 import json
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Optional
 
 import typer
 from rich.console import Console
@@ -338,6 +338,11 @@ def demonstrator_list() -> None:
     console.print(result)
 
 
+def _check(check: dict[str, Any]) -> str:
+    """A score check of a demonstrator training run, as one phrase."""
+    return f"step {check['step']:,}: {_score(check['mean'], check['std'])}, normalized {check['normalized']:.3f}"
+
+
 @demonstrator_app.command("runs")
 def demonstrator_runs(
     episodes: Annotated[int, typer.Option(min=0, help="also play this many deterministic episodes of each run's "
@@ -363,6 +368,11 @@ def demonstrator_runs(
             row.append(f"{task}: {_score(float(returns.mean()), float(returns.std()))}")
         result.add_row(*row)
     console.print(result)
+    for run in runs:
+        if run.score_checks:
+            console.print(f"{run.group} seed {run.seed}, {len(run.score_checks)} score checks: "
+                          f"last {_check(run.score_checks[-1])}; best "
+                          f"{_check(max(run.score_checks, key=lambda check: check['normalized']))}")
     console.print(f"saved under {training_runs_dir()}; the recent return is the mean of the last 100 training "
                   "episodes, exploration included (`vintix demonstrator eval` scores a finished one)")
 

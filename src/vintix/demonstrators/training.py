@@ -188,8 +188,9 @@ STATE_FILE = "state.json"  # written last: a state folder without it is incomple
 
 
 def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None, directory: Path,
-                        plan: dict[str, Any], train_seconds: float) -> Path:
-    """Save what resuming needs into ``directory/steps-N/``, then delete older (or incomplete) states."""
+                        plan: dict[str, Any], train_seconds: float, score_checks: list[dict[str, Any]] = ()) -> Path:
+    """Save what resuming needs into ``directory/steps-N/``, then delete older (or incomplete) states;
+    `score_checks` (those of `DemonstratorRecipe.stop_at_score` so far) are kept with it."""
     state = directory / f"steps-{model.num_timesteps:012d}"
     shutil.rmtree(state, ignore_errors=True)
     state.mkdir(parents=True)
@@ -200,7 +201,8 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
         vec_normalize.save(str(state / "vecnormalize.pkl"))
     returns = [episode["r"] for episode in model.ep_info_buffer or ()]
     info = {"plan": plan, "num_timesteps": model.num_timesteps, "train_seconds": round(train_seconds, 1),
-            "recent_return": round(float(np.mean(returns)), 1) if returns else None}
+            "recent_return": round(float(np.mean(returns)), 1) if returns else None,
+            "score_checks": list(score_checks)}
     atomic_write_text(state / STATE_FILE, json.dumps(info, indent=1) + "\n")
     for other in directory.glob("steps-*"):
         if other != state:
@@ -249,6 +251,8 @@ class UnfinishedRun:
     None when no episode had ended since the run was last started."""
     observation_dims: int = 0
     """The observation dimensions its policy sees (`DemonstratorRecipe.observation_dims`; 0: all)."""
+    score_checks: tuple[dict[str, Any], ...] = ()
+    """Its score checks so far (`DemonstratorRecipe.stop_at_score`), oldest first: step, mean, std, normalized."""
 
     def seconds_left(self) -> float:
         """Training time still needed at the pace so far."""
@@ -266,7 +270,8 @@ def unfinished_runs(root: Path | None = None) -> list[UnfinishedRun]:
             plan = _saved_plan(info)
             runs.append(UnfinishedRun(folder, plan["group"], plan["recipe"]["algorithm"], plan["seed"],
                                       info["num_timesteps"], plan["timesteps"], info["train_seconds"],
-                                      info.get("recent_return"), plan["recipe"]["observation_dims"]))
+                                      info.get("recent_return"), plan["recipe"]["observation_dims"],
+                                      tuple(info.get("score_checks", ()))))
     return runs
 
 
@@ -313,12 +318,13 @@ def _global_rngs_kept() -> Iterator[None]:
 
 class _StopAtScore(BaseCallback):
     """Scores the policy as it would ship each time training passes a multiple of `every` env steps, and
-    stops training once the normalized mean reaches `target`; `report` gets each check as a line."""
+    stops training once the normalized mean reaches `target`; `report` gets each check as a line, and
+    `checks` (those of the sessions before, when resumed) gains each as a dict: the run's learning curve."""
 
     def __init__(self, score: Callable[[], tuple[str, np.ndarray]], every: int, target: float,
-                 report: Callable[[str], object] | None):
+                 report: Callable[[str], object] | None, checks: list[dict[str, Any]]):
         super().__init__()
-        self.score, self.every, self.target, self.report = score, every, target, report
+        self.score, self.every, self.target, self.report, self.checks = score, every, target, report, checks
         self.reached: dict[str, Any] | None = None
 
     def _on_training_start(self) -> None:
@@ -331,6 +337,8 @@ class _StopAtScore(BaseCallback):
         with _global_rngs_kept():
             task, returns = self.score()
         score = float(reference(task, "paper").normalize(returns.mean()))
+        self.checks.append({"step": self.num_timesteps, "mean": round(float(returns.mean()), 1),
+                            "std": round(float(returns.std()), 1), "normalized": round(score, 4)})
         if self.report:
             self.report(f"step {self.num_timesteps:,}: {task} {returns.mean():,.1f} ± {returns.std():,.1f} over "
                         f"{len(returns)} deterministic episodes, normalized {score:.3f} (stops at {self.target})")
@@ -432,16 +440,19 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     seconds_before = found[1]["train_seconds"] if found else 0.0
     start = time.perf_counter()
 
+    score_checks: list[dict[str, Any]] = found[1].get("score_checks", []) if found else []
+
     def save_state() -> Path:
         return save_training_state(model, vec_normalize, state_dir, plan,
-                                   seconds_before + time.perf_counter() - start)
+                                   seconds_before + time.perf_counter() - start, score_checks)
 
     callbacks: list[BaseCallback] = [_SaveEvery(save_state, save_minutes * 60.0)]
     stop = None
     if recipe.stop_at_score is not None:
         score = partial(score_as_shipped, model, vec_normalize, spec.group, recipe.observation_dims,
                         SCORE_EPISODES, SCORE_SEED)
-        stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report)
+        stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report,
+                            score_checks)
         callbacks.append(stop)
     callbacks += [callback] if callback else []
     try:
@@ -470,6 +481,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     short_of_target = stop is not None and stop.reached is None
     if stop is not None and stop.reached:
         info["stopped_at_score"] = {**stop.reached, "budget": budget}
+    if score_checks:
+        info["score_checks"] = score_checks
     if short_of_target:
         info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget, "state": str(state_dir)}
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
