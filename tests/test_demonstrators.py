@@ -178,6 +178,39 @@ def test_a_run_that_ends_short_of_its_target_stays_saved_for_a_larger_budget(tmp
     assert [run.steps for run in unfinished_runs()] == [210]
 
 
+class RecordLearningRates(BaseCallback):
+    """The optimizer's learning rate at each rollout's start: the one the last update used."""
+
+    def __init__(self):
+        super().__init__()
+        self.rates = []
+
+    def _on_rollout_start(self) -> None:
+        self.rates.append(self.model.policy.optimizer.param_groups[0]["lr"])
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def test_a_learning_rate_that_decays_over_the_budget_ties_a_saved_run_to_that_budget(tmp_path):
+    task, rates = "InvertedPendulum-v5", RecordLearningRates()
+    recipe = DemonstratorRecipe("PPO", 256, {"n_steps": 32, "batch_size": 32, "n_epochs": 1, "learning_rate": 0.001},
+                                normalize_observations=True, normalize_rewards=True, n_envs=2,
+                                learning_rate_decay=True, stop_at_score=100.0)
+    run = dict(out=tmp_path, progress_bar=False, recipe=recipe)
+    with pytest.raises(KeyboardInterrupt):
+        train_demonstrator(task, callback=InterruptAt(128, "ctrl-c"), **run)
+    with pytest.raises(VintixError, match="unfinished run with other settings"):
+        train_demonstrator(task, timesteps=512, **run)  # its schedule would jump
+    path = train_demonstrator(task, callback=rates, **run)
+    # 64 steps a rollout (2 envs x 32); the update after the one ending at step 192 used 0.001 x (1 - 192/256).
+    assert rates.rates == sorted(rates.rates, reverse=True) and rates.rates[-1] == pytest.approx(0.00025)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert (meta["n_envs"], meta["normalize_rewards"], meta["learning_rate_decay"]) == (2, True, True)
+    # Short of its target, but a larger budget could not go on from here: nothing is kept.
+    assert "state" not in meta["short_of_target"] and unfinished_runs() == []
+
+
 def test_slow_saves_are_spaced_out_so_they_take_a_small_share_of_training(monkeypatch):
     clock = [0.0]
     monkeypatch.setattr(training.time, "perf_counter", lambda: clock[0])

@@ -263,9 +263,10 @@ def demonstrator_train(
         console.print(f"stopped at step {stopped['step']:,} of {stopped['budget']:,}: normalized score "
                       f"{stopped['normalized_score']} ≥ {stopped['target']}")
     if short := meta.get("short_of_target"):
+        kept = (f": the run stays saved under {short['state']}; a larger --timesteps goes on from there"
+                if "state" in short else "")
         console.print(f"[yellow]the budget of {short['budget']:,} steps ended below the target score "
-                      f"{short['target']}[/]: the run stays saved under {short['state']}; a larger --timesteps "
-                      "goes on from there")
+                      f"{short['target']}[/]{kept}")
     console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task {task}`")
 
 

@@ -48,6 +48,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import MaybeCallback
+from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from vintix.atomic import atomic_write_text
@@ -74,6 +75,13 @@ class DemonstratorRecipe:
     """Tasks trained on, one env each; empty: the group's single task."""
     normalize_observations: bool = False
     """Train behind VecNormalize (its statistics ship with the weights)."""
+    normalize_rewards: bool = False
+    """Also scale rewards by VecNormalize's running return std while training (scores use raw rewards)."""
+    n_envs: int = 1
+    """Copies of each train task's env, stepped together (a PPO rollout takes `n_steps` from each)."""
+    learning_rate_decay: bool = False
+    """Decay the learning rate linearly from `hyperparameters['learning_rate']` to 0 over `timesteps`; the
+    budget then shapes what the run learns, so a saved run resumes only under the same budget."""
     env_options: dict[str, Any] = field(default_factory=dict)
     """Options for `make_env` during training only (evaluation uses the task as registered)."""
     observation_dims: int = 0
@@ -95,7 +103,7 @@ SCORE_EPISODES, SCORE_SEED = 10, 1_000
 seeds `vintix demonstrator eval` reports, so a run that stops on a lucky check is not also scored on it."""
 # Fields that decide when a run stops, not what it learns, so a saved run resumes whatever they say:
 # a budget is read by SB3 only for learning-rate and clip-range schedules, and a recipe's hyperparameters
-# (JSON) hold no schedules, only constants.
+# (JSON) hold no schedules, only constants; `learning_rate_decay` makes the budget a training field again.
 _STOPPING_FIELDS = ("timesteps", "stop_at_score")
 
 
@@ -113,7 +121,7 @@ RECIPES: dict[str, DemonstratorRecipe] = {
     "mujoco-walker2d": DemonstratorRecipe("SAC", 500_000),
     # The three slowest runs stop once a check scores 0.85 of the paper's expert: the bar is 0.8, and
     # hours of CPU past it buy nothing the dataset needs; the margin covers a lucky check (10 episodes).
-    # Their budgets are ceilings, twice what the benchmarks below train for: those end near the bar
+    # Ant's and Humanoid's budgets are ceilings, twice what the benchmarks below train for: those end near the bar
     # (Tianshou's TD3 on Ant: 5116 at 1M steps, 0.81 of the paper's expert; the Zoo's SAC on Humanoid:
     # 6232 at 2M, 0.82).
     # The RL Zoo's settings, whose benchmark (v3 envs, 1M steps) has TD3 at 5814 on Ant and SAC at 4616;
@@ -125,7 +133,17 @@ RECIPES: dict[str, DemonstratorRecipe] = {
     # The RL Zoo trains SAC on Humanoid for 2M steps after 10k random ones (6232 in its benchmark; 0.8 of
     # the paper's expert is 6045).
     "mujoco-humanoid": DemonstratorRecipe("SAC", 4_000_000, {"learning_starts": 10_000}, stop_at_score=0.85),
-    "mujoco-humanoidstandup": DemonstratorRecipe("SAC", 2_000_000, stop_at_score=0.85),
+    # Sample Factory's MuJoCo PPO (sf_examples/mujoco), which trained JAT's experts, those the paper normalizes
+    # by (294k-319k on HumanoidStandup): 64 envs x 64-step rollouts, 2 epochs of 4 minibatches, learning rate
+    # 0.00295 decaying linearly over 10M steps, observations and returns normalized. SB3 has no KL penalty
+    # (Sample Factory's kl_loss_coeff 0.1) and does not share the actor's and critic's layers. At about 2.2k
+    # steps/s on one core (SAC: under 30), 10M steps take about 1.3 hours.
+    "mujoco-humanoidstandup": DemonstratorRecipe(
+        "PPO", 10_000_000,
+        {"n_steps": 64, "batch_size": 1024, "n_epochs": 2, "learning_rate": 0.00295, "max_grad_norm": 3.5,
+         "vf_coef": 1.3, "ent_coef": 0.0, "gamma": 0.99, "gae_lambda": 0.95, "clip_range": 0.2},
+        normalize_observations=True, normalize_rewards=True, n_envs=64, learning_rate_decay=True,
+        stop_at_score=0.85),
     "industrial_benchmark": DemonstratorRecipe(
         "PPO", 1_000_000,
         {"gamma": 0.97, "n_steps": 250, "batch_size": 50, "target_kl": 0.2, "normalize_advantage": True},
@@ -165,7 +183,7 @@ def _training_fields(recipe: dict[str, Any]) -> dict[str, Any]:
 
 def _plan(group: str, budget: int, seed: int, recipe: DemonstratorRecipe) -> dict[str, Any]:
     """What a run records of itself (group, budget, seed, the recipe's training fields); a saved state
-    must match all but the budget to be resumed (`latest_training_state`)."""
+    must match all of it to be resumed (`latest_training_state`), the budget only if it sets a schedule."""
     plan = {"group": group, "timesteps": budget, "seed": seed, "recipe": _training_fields(asdict(recipe))}
     return dict(json.loads(json.dumps(plan)))  # tuples as lists, as they come back from state.json
 
@@ -219,12 +237,15 @@ def _newest_state(directory: Path) -> tuple[Path, dict[str, Any]] | None:
 def latest_training_state(directory: Path, plan: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:
     """The newest complete state in `directory` and its info; an unfinished run with another plan
     is an error (resuming it under new settings would train neither), one with another budget is not
-    (a budget only says where to stop)."""
+    (a budget only says where to stop), unless its learning rate decays over that budget."""
     found = _newest_state(directory)
     if found is None:
         return None
     state, info = found
-    if {**_saved_plan(info), "timesteps": plan["timesteps"]} != plan:
+    saved = _saved_plan(info)
+    if not saved["recipe"]["learning_rate_decay"]:
+        saved["timesteps"] = plan["timesteps"]
+    if saved != plan:
         raise VintixError(
             f"{directory} holds an unfinished run with other settings ({info['plan']}); re-run with those "
             f"settings to finish it, or delete the folder to start this one ({plan})"
@@ -396,15 +417,17 @@ def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume:
             vec_normalize = VecNormalize.load(str(resume / "vecnormalize.pkl"), venv)
         else:
             gamma = recipe.hyperparameters.get("gamma", 0.99)
-            vec_normalize = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=gamma)
+            vec_normalize = VecNormalize(venv, norm_obs=True, norm_reward=recipe.normalize_rewards, gamma=gamma)
         venv = vec_normalize
     algorithm = ALGORITHMS[recipe.algorithm]
     if resume is None:
-        noise = {}
+        extra: dict[str, Any] = {}
         if recipe.action_noise_std:
             size = venv.action_space.shape[0]
-            noise["action_noise"] = NormalActionNoise(np.zeros(size), np.full(size, recipe.action_noise_std))
-        model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **noise, **recipe.hyperparameters)
+            extra["action_noise"] = NormalActionNoise(np.zeros(size), np.full(size, recipe.action_noise_std))
+        if recipe.learning_rate_decay:  # SB3 calls it with the share of the budget left, 1 -> 0
+            extra["learning_rate"] = LinearSchedule(recipe.hyperparameters["learning_rate"], 0.0, 1.0)
+        model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **{**recipe.hyperparameters, **extra})
     else:
         model = algorithm.load(resume / "model.zip", env=venv, device="cpu")
         if isinstance(model, OffPolicyAlgorithm):
@@ -435,7 +458,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     plan = _plan(spec.group, budget, seed, recipe)
     state_dir = state_dir or default_state_dir(spec.group, seed)
     found = latest_training_state(state_dir, plan)
-    venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options, recipe.observation_dims) for name in tasks])
+    venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options, recipe.observation_dims)
+                        for name in tasks for _ in range(recipe.n_envs)])
     model, vec_normalize = _new_or_resumed(recipe, venv, seed, found[0] if found else None)
     seconds_before = found[1]["train_seconds"] if found else 0.0
     start = time.perf_counter()
@@ -474,19 +498,22 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     info = {"group": spec.group, "train_tasks": list(tasks), "timesteps": model.num_timesteps, "seed": seed,
             "train_seconds": round(seconds, 1), "hyperparameters": recipe.hyperparameters,
             "env_options": recipe.env_options, "command": command}
-    if recipe.observation_dims:
-        info["observation_dims"] = recipe.observation_dims
+    for name in ("observation_dims", "n_envs", "normalize_rewards", "learning_rate_decay"):  # those a recipe changed
+        if getattr(recipe, name) != DemonstratorRecipe.__dataclass_fields__[name].default:
+            info[name] = getattr(recipe, name)
     if found:
         info["resumed_at"] = found[1]["num_timesteps"]
     short_of_target = stop is not None and stop.reached is None
+    goes_on = short_of_target and not recipe.learning_rate_decay  # a larger budget would change a schedule
     if stop is not None and stop.reached:
         info["stopped_at_score"] = {**stop.reached, "budget": budget}
     if score_checks:
         info["score_checks"] = score_checks
     if short_of_target:
-        info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget, "state": str(state_dir)}
+        info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget,
+                                   **({"state": str(state_dir)} if goes_on else {})}
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
-    if short_of_target:
+    if goes_on:
         save_state()  # a larger budget (`--timesteps`) goes on from here rather than from scratch
     else:
         shutil.rmtree(state_dir, ignore_errors=True)
