@@ -130,6 +130,12 @@ def test_python_dash_m_vintix_runs_the_cli():
     assert usage.returncode == 0 and "Usage: vintix" in usage.stdout
 
 
+def test_help_keeps_the_optional_extra_to_install_for_ray():
+    for command in ("collect", "eval"):
+        result = runner.invoke(app, [command, "--help"])
+        assert result.exit_code == 0 and "'vintix[cluster]'" in result.output  # not eaten as rich markup
+
+
 def test_collect_into_a_folder_made_with_other_settings_says_so(tmp_path):
     command = ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "100", "--out", str(tmp_path)]
     assert runner.invoke(app, command).exit_code == 0

@@ -45,8 +45,9 @@ demonstrator_app = typer.Typer(help="Train and score the experts that learning h
 app.add_typer(demonstrator_app, name="demonstrator")
 bench_app = typer.Typer(help="Speed benchmarks (not tests): training and inference throughput.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
+# The backslash keeps typer's rich help from reading "[cluster]" as markup and dropping it.
 _RAY_HELP = ("spread the work over a Ray cluster: 'auto' (the running one, else a local instance) or its address, "
-             "e.g. host:6379 or ray://host:10001; needs pip install 'vintix[cluster]'")
+             "e.g. host:6379 or ray://host:10001; needs pip install 'vintix\\[cluster]'")
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
 console = Console(width=None if sys.stdout.isatty() else 160)
 
