@@ -21,19 +21,18 @@ import gymnasium as gym
 import numpy as np
 import torch
 from safetensors.torch import load_file, save_file
-from stable_baselines3 import PPO, SAC, TD3
+from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.distributions import DiagGaussianDistribution
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.sac.policies import SACPolicy
-from stable_baselines3.td3.policies import TD3Policy
 from stable_baselines3.common.vec_env import VecNormalize
 
 from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, make_env
 
-ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"PPO": PPO, "SAC": SAC, "TD3": TD3}
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"PPO": PPO, "SAC": SAC}
 OBS_MEAN, OBS_VAR = "obs_rms.mean", "obs_rms.var"
 
 
@@ -142,11 +141,9 @@ def first_observations(env: gym.Env, dims: int) -> gym.Env:
 
 def deterministic_actor(policy: BasePolicy) -> list[torch.nn.Module] | None:
     """The modules, in order, that map a (normalized, flat) observation to the policy's deterministic
-    action: SAC's mean squashed by tanh, TD3's actor (tanh last), PPO's Gaussian mean; None for others."""
+    action: SAC's mean squashed by tanh, PPO's Gaussian mean; None for others."""
     if isinstance(policy, SACPolicy) and not policy.actor.use_sde:
         return [*policy.actor.latent_pi, policy.actor.mu, torch.nn.Tanh()]
-    if isinstance(policy, TD3Policy):
-        return list(policy.actor.mu)
     if isinstance(policy, ActorCriticPolicy) and isinstance(policy.action_dist, DiagGaussianDistribution):
         return [*policy.mlp_extractor.policy_net, policy.action_net]
     return None
