@@ -122,6 +122,7 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     saved_file = next(state.glob("steps-*/state.json"))  # as a vintix from before observation_dims saved it:
     saved["plan"]["recipe"].pop("observation_dims")      # a recipe field added since then takes its default
     saved["plan"]["recipe"]["stop_at_score"] = 0.5       # one that says when to stop is not matched
+    saved["plan"]["recipe"]["action_noise_std"] = 0.0    # one removed since then resumes where it was unused
     saved_file.write_text(json.dumps(saved))
     started = RecordStart()
     path = train_demonstrator(task, timesteps=150, callback=started, **run)  # a budget only says where to stop

@@ -190,14 +190,22 @@ def _plan(group: str, budget: int, seed: int, recipe: DemonstratorRecipe) -> dic
     return dict(json.loads(json.dumps(plan)))  # tuples as lists, as they come back from state.json
 
 
+# Fields `DemonstratorRecipe` no longer has, with the value that left them unused: a run saved with that
+# value trained as a recipe without the field does (TD3's action noise, 0 for SAC and PPO).
+_REMOVED_FIELDS: dict[str, Any] = {"action_noise_std": 0.0}
+
+
 def _saved_plan(info: dict[str, Any]) -> dict[str, Any]:
     """The plan a state was saved with, recipe fields added to `DemonstratorRecipe` since then at their
-    defaults: a run saved by an older vintix stays resumable."""
+    defaults and fields removed since then dropped where unused: a run saved by an older vintix stays
+    resumable."""
     defaults = {f.name: f.default if f.default is not MISSING else f.default_factory()  # type: ignore[misc]
                 for f in fields(DemonstratorRecipe) if f.name not in _STOPPING_FIELDS
                 and (f.default is not MISSING or f.default_factory is not MISSING)}
     plan = info["plan"]
-    return {**plan, "recipe": {**json.loads(json.dumps(defaults)), **_training_fields(plan["recipe"])}}
+    saved = {name: value for name, value in _training_fields(plan["recipe"]).items()
+             if name not in _REMOVED_FIELDS or value != _REMOVED_FIELDS[name]}
+    return {**plan, "recipe": {**json.loads(json.dumps(defaults)), **saved}}
 
 
 class TrainingInterrupted(KeyboardInterrupt):
