@@ -33,7 +33,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from functools import partial
@@ -216,7 +216,8 @@ STATE_FILE = "state.json"  # written last: a state folder without it is incomple
 
 
 def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None, directory: Path,
-                        plan: dict[str, Any], train_seconds: float, score_checks: list[dict[str, Any]] = ()) -> Path:
+                        plan: dict[str, Any], train_seconds: float,
+                        score_checks: Sequence[dict[str, Any]] = ()) -> Path:
     """Save what resuming needs into ``directory/steps-N/``, then delete older (or incomplete) states;
     `score_checks` (those of `DemonstratorRecipe.stop_at_score` so far) are kept with it."""
     state = directory / f"steps-{model.num_timesteps:012d}"
