@@ -254,6 +254,7 @@ def test_industrial_benchmark_policy_normalizes_observations_like_its_training()
 @pytest.mark.parametrize("task, episodes", [
     ("InvertedPendulum-v5", 2), ("InvertedDoublePendulum-v5", 2), ("Swimmer-v5", 2), ("Reacher-v5", 10),
     ("Pusher-v5", 10), ("Hopper-v5", 2), ("HalfCheetah-v5", 2), ("Walker2d-v5", 5), ("Ant-v5", 3),
+    ("HumanoidStandup-v5", 5),
     ("industrial-benchmark-35-v1", 3), ("industrial-benchmark-90-v1", 3),
 ])
 def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episodes):
