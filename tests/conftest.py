@@ -11,6 +11,12 @@ def own_user_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "user-cache"))
 
 
+@pytest.fixture
+def without_shipped_weights(tmp_path, monkeypatch):
+    """The package as if it shipped no trained demonstrator (every MuJoCo task has one)."""
+    monkeypatch.setattr("vintix.demonstrators.trained.shipped_weights_dir", lambda: tmp_path / "no-weights")
+
+
 def rollout(env, steps: int, action_seed: int = 0, reset_seed: int | None = None):
     """Reset (with `reset_seed`), then take `steps` uniform-random actions drawn from a generator of
     our own (not the env's action space), resetting at episode ends.
