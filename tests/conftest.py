@@ -13,7 +13,8 @@ def own_user_cache(tmp_path, monkeypatch):
 
 @pytest.fixture
 def without_shipped_weights(tmp_path, monkeypatch):
-    """The package as if it shipped no trained demonstrator (every MuJoCo task has one)."""
+    """The package as if it shipped no trained demonstrator, so a test of a missing one does not hang on
+    which tasks ship one."""
     monkeypatch.setattr("vintix.demonstrators.trained.shipped_weights_dir", lambda: tmp_path / "no-weights")
 
 
