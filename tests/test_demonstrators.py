@@ -18,8 +18,8 @@ from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_ref
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
 from vintix.demonstrators.trained import shipped_weights_dir
 from vintix.demonstrators import training
-from vintix.demonstrators.training import (DemonstratorRecipe, default_state_dir, evaluate_unfinished_run, recipe_for,
-                                           train_demonstrator, unfinished_runs)
+from vintix.demonstrators.training import (SCORE_EPISODES, SCORE_SEED, DemonstratorRecipe, best_check, default_state_dir,
+                                           evaluate_unfinished_run, recipe_for, train_demonstrator, unfinished_runs)
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
 
@@ -171,11 +171,22 @@ def test_a_run_that_ends_short_of_its_target_stays_saved_for_a_larger_budget(tmp
     assert [check["step"] for check in unfinished.score_checks] == list(range(5, 201, 5))
     listed = CliRunner().invoke(app, ["demonstrator", "runs"])
     assert listed.exit_code == 0 and "40 score checks: last step 200: " in listed.output
+    folder, check = best_check(unfinished.folder)  # the best check's policy is kept, and scores as it did
+    assert check == max(unfinished.score_checks, key=lambda check: check["normalized"])
+    returns = episode_returns(task, load_demonstrator(task, folder), SCORE_EPISODES, SCORE_SEED)
+    assert round(float(returns.mean()), 1) == check["mean"] and str(folder) in "".join(listed.output.split())
+    scored = CliRunner().invoke(app, ["demonstrator", "eval", "--task", task, "--weights", str(folder),
+                                      "--episodes", "2", "--out", str(tmp_path / "scores.csv")])
+    assert scored.exit_code == 0 and f"--weights {folder}" in (tmp_path / "scores.csv").read_text()
+    refused = CliRunner().invoke(app, ["demonstrator", "eval", "--task", task, "--weights", str(folder),
+                                       "--update-package-table"])
+    assert refused.exit_code == 2 and "copy its files into the package" in " ".join(refused.output.split())
     path = train_demonstrator(task, timesteps=210, callback=started, **run)
     assert started.start[0] == 200 and len(lines) == 42  # went on, checking at 205 and 210
     meta = json.loads(path.with_suffix(".json").read_text())
     assert (meta["resumed_at"], meta["timesteps"], meta["short_of_target"]["budget"]) == (200, 210, 210)
     assert [check["step"] for check in meta["score_checks"]] == list(range(5, 211, 5))  # the whole curve
+    assert meta["short_of_target"]["best_check"]["normalized"] >= check["normalized"]  # compared with the kept one
     assert [run.steps for run in unfinished_runs()] == [210]
 
 
@@ -279,9 +290,11 @@ def test_task_without_shipped_weights_names_the_command_that_trains_them(without
         load_demonstrator("Hopper-v5")
 
 
-def test_metaworld_has_no_training_recipe():
+def test_metaworld_has_no_training_recipe_nor_trained_weights_to_load(tmp_path):
     with pytest.raises(VintixError, match="scripted"):
         recipe_for("reach-v3")
+    with pytest.raises(VintixError, match="leave the weights out"):
+        load_demonstrator("reach-v3", tmp_path)
 
 
 def test_random_policy_scores_below_the_demonstrator_and_table_round_trips(tmp_path):

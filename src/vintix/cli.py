@@ -281,18 +281,25 @@ def demonstrator_eval(
     update_package_table: Annotated[bool, typer.Option(
         "--update-package-table", help="also rewrite the package's reference table (demonstrators/scores.csv), "
         "which normalizes every 'ours' result")] = False,
+    weights: Annotated[Optional[Path], typer.Option(
+        help="score the trained weights in this folder instead of the shipped ones (e.g. a run's best check, "
+        "`vintix demonstrator runs`)")] = None,
 ) -> None:
     """Score demonstrators and a uniform-random policy; record both in a score table (--out)."""
     from vintix.demonstrators import load_demonstrator
     from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores, scores_path
 
+    if weights is not None and update_package_table:
+        raise _fail(VintixError(f"--update-package-table records the shipped demonstrators, not those in {weights}: "
+                                "copy its files into the package's weights folder first, then score without --weights"))
     try:
         specs = _runnable_tasks(task)
-        demonstrators = [load_demonstrator(spec.name) for spec in specs]
+        demonstrators = [load_demonstrator(spec.name, weights) for spec in specs]
         check_output_path(out)
     except VintixError as error:
         raise _fail(error)
     command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"
+    command += f" --weights {weights}" if weights else ""
     rows = []
     for spec, demonstrator in track(list(zip(specs, demonstrators)), description="scoring"):
         line = command.format(task=spec.name)
@@ -351,7 +358,7 @@ def demonstrator_runs(
                                           "saved policy (0: none; scored as `demonstrator eval` scores)")] = 0,
 ) -> None:
     """Unfinished demonstrator trainings saved in the cache: how far each got, how it does, time left."""
-    from vintix.demonstrators.training import evaluate_unfinished_run, training_runs_dir, unfinished_runs
+    from vintix.demonstrators.training import best_check, evaluate_unfinished_run, training_runs_dir, unfinished_runs
 
     runs = unfinished_runs()
     if not runs:
@@ -375,6 +382,11 @@ def demonstrator_runs(
             console.print(f"{run.group} seed {run.seed}, {len(run.score_checks)} score checks: "
                           f"last {_check(run.score_checks[-1])}; best "
                           f"{_check(max(run.score_checks, key=lambda check: check['normalized']))}")
+        kept = best_check(run.folder)
+        if kept is not None:
+            console.print(f"{run.group} seed {run.seed}: the policy of its best check since they were kept "
+                          f"({_check(kept[1])}) is in {kept[0]}; score it with `vintix demonstrator eval --task "
+                          f"{list_tasks(group=run.group)[0].name} --weights {kept[0]}`")
     console.print(f"saved under {training_runs_dir()}; the recent return is the mean of the last 100 training "
                   "episodes, exploration included (`vintix demonstrator eval` scores a finished one)")
 

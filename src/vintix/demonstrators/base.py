@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Protocol
 
 import gymnasium as gym
@@ -20,10 +21,14 @@ class Demonstrator(Protocol):
         ...
 
 
-def load_demonstrator(task: str) -> Demonstrator:
+def load_demonstrator(task: str, weights: Path | None = None) -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
-    shipped for the task's group; a clear error for tasks that have none."""
+    shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
+    tasks that have none."""
     spec = get_task(task)
+    if weights is not None and spec.domain in ("metaworld", "bidexhands"):
+        raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "
+                          "are scripted and Bi-DexHands' need IsaacGym; leave the weights out")
     if spec.domain == "metaworld":
         from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
 
@@ -32,4 +37,4 @@ def load_demonstrator(task: str) -> Demonstrator:
         raise VintixError(f"no demonstrator for Bi-DexHands task {spec.name!r}: its envs need IsaacGym")
     from vintix.demonstrators.trained import TrainedDemonstrator
 
-    return TrainedDemonstrator(spec)
+    return TrainedDemonstrator(spec, weights)

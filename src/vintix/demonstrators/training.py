@@ -213,6 +213,7 @@ class TrainingInterrupted(KeyboardInterrupt):
 
 
 STATE_FILE = "state.json"  # written last: a state folder without it is incomplete
+BEST_CHECK_PREFIX = "best-at-"  # + step: the best score check's policy, kept beside the newest state
 
 
 def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None, directory: Path,
@@ -243,6 +244,30 @@ def _newest_state(directory: Path) -> tuple[Path, dict[str, Any]] | None:
     """The newest complete state in `directory` and its info, if any."""
     complete = sorted(p.parent for p in directory.glob(f"steps-*/{STATE_FILE}"))
     return (complete[-1], json.loads((complete[-1] / STATE_FILE).read_text())) if complete else None
+
+
+def keep_best_check(model: BaseAlgorithm, vec_normalize: VecNormalize | None, group: str, observation_dims: int,
+                    directory: Path, check: dict[str, Any]) -> Path:
+    """Write the policy of score check `check` as shipped weights into ``directory/best-at-N/``, then
+    delete the one kept before: a policy that scores well at one check can fall at the next (Humanoid's SAC:
+    0.71 at 900k steps, 0.33 at 1.1M), and the run's newest state keeps only the latest."""
+    kept = directory / f"{BEST_CHECK_PREFIX}{check['step']:012d}"
+    shutil.rmtree(kept, ignore_errors=True)
+    save_trained_policy(model, vec_normalize, group, kept, {"observation_dims": observation_dims,
+                                                            "score_check": check})
+    for other in directory.glob(f"{BEST_CHECK_PREFIX}*"):
+        if other != kept:
+            shutil.rmtree(other, ignore_errors=True)
+    return kept
+
+
+def best_check(directory: Path) -> tuple[Path, dict[str, Any]] | None:
+    """The folder of the best score check's policy kept in `directory` (`keep_best_check`) and that check."""
+    complete = sorted(meta.parent for meta in directory.glob(f"{BEST_CHECK_PREFIX}*/*.json"))
+    if not complete:
+        return None
+    [meta] = complete[-1].glob("*.json")
+    return complete[-1], json.loads(meta.read_text())["score_check"]
 
 
 def latest_training_state(directory: Path, plan: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:
@@ -351,12 +376,15 @@ def _global_rngs_kept() -> Iterator[None]:
 class _StopAtScore(BaseCallback):
     """Scores the policy as it would ship each time training passes a multiple of `every` env steps, and
     stops training once the normalized mean reaches `target`; `report` gets each check as a line, and
-    `checks` (those of the sessions before, when resumed) gains each as a dict: the run's learning curve."""
+    `checks` (those of the sessions before, when resumed) gains each as a dict: the run's learning curve.
+    `keep` gets each check that beats `best` (the best normalized score kept so far), to keep its policy."""
 
     def __init__(self, score: Callable[[], tuple[str, np.ndarray]], every: int, target: float,
-                 report: Callable[[str], object] | None, checks: list[dict[str, Any]]):
+                 report: Callable[[str], object] | None, checks: list[dict[str, Any]],
+                 keep: Callable[[dict[str, Any]], object], best: float):
         super().__init__()
         self.score, self.every, self.target, self.report, self.checks = score, every, target, report, checks
+        self.keep, self.best = keep, best
         self.reached: dict[str, Any] | None = None
 
     def _on_training_start(self) -> None:
@@ -369,8 +397,12 @@ class _StopAtScore(BaseCallback):
         with _global_rngs_kept():
             task, returns = self.score()
         score = float(reference(task, "paper").normalize(returns.mean()))
-        self.checks.append({"step": self.num_timesteps, "mean": round(float(returns.mean()), 1),
-                            "std": round(float(returns.std()), 1), "normalized": round(score, 4)})
+        check = {"step": self.num_timesteps, "mean": round(float(returns.mean()), 1),
+                 "std": round(float(returns.std()), 1), "normalized": round(score, 4)}
+        self.checks.append(check)
+        if check["normalized"] > self.best:
+            self.best = check["normalized"]
+            self.keep(check)
         if self.report:
             self.report(f"step {self.num_timesteps:,}: {task} {returns.mean():,.1f} ± {returns.std():,.1f} over "
                         f"{len(returns)} deterministic episodes, normalized {score:.3f} (stops at {self.target})")
@@ -456,8 +488,9 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     `save_minutes` (less often when a save takes over 2 % of that) and on Ctrl-C or SIGTERM under
     `state_dir` (default: `default_state_dir`); a run finds and continues it, and deletes it once the
     weights are written, unless the recipe's `stop_at_score` was not reached: then the state stays, so a
-    larger budget can continue the run. `callback`: more SB3 callbacks; `report`: gets a line per score check of a
-    recipe with `stop_at_score`.
+    larger budget can continue the run. Each score check that beats the run's best so far keeps its policy
+    beside the state (`keep_best_check`), as a policy can fall between checks. `callback`: more SB3 callbacks;
+    `report`: gets a line per score check of a recipe with `stop_at_score`.
     """
     spec = get_task(task)
     recipe = recipe or recipe_for(task)
@@ -483,8 +516,13 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     if recipe.stop_at_score is not None:
         score = partial(score_as_shipped, model, vec_normalize, spec.group, recipe.observation_dims,
                         SCORE_EPISODES, SCORE_SEED)
+        if found is None:  # a fresh run: a policy kept by an earlier one in this folder is not its own
+            for other in state_dir.glob(f"{BEST_CHECK_PREFIX}*"):
+                shutil.rmtree(other)
+        kept = best_check(state_dir)
+        keep = partial(keep_best_check, model, vec_normalize, spec.group, recipe.observation_dims, state_dir)
         stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report,
-                            score_checks)
+                            score_checks, keep, kept[1]["normalized"] if kept else -np.inf)
         callbacks.append(stop)
     callbacks += [callback] if callback else []
     try:
@@ -518,8 +556,10 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     if score_checks:
         info["score_checks"] = score_checks
     if short_of_target:
+        kept = best_check(state_dir) if goes_on else None
         info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget,
-                                   **({"state": str(state_dir)} if goes_on else {})}
+                                   **({"state": str(state_dir)} if goes_on else {}),
+                                   **({"best_check": {"folder": str(kept[0]), **kept[1]}} if kept else {})}
     path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
     if goes_on:
         save_state()  # a larger budget (`--timesteps`) goes on from here rather than from scratch
