@@ -216,6 +216,13 @@ STATE_FILE = "state.json"  # written last: a state folder without it is incomple
 BEST_CHECK_PREFIX = "best-at-"  # + step: the best score check's policy, kept beside the newest state
 
 
+def _delete_folders(directory: Path, prefix: str, but: Path | None = None) -> None:
+    """Delete the folders of `directory` whose names start with `prefix`, all `but` one."""
+    for other in directory.glob(f"{prefix}*"):
+        if other != but:
+            shutil.rmtree(other, ignore_errors=True)
+
+
 def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None, directory: Path,
                         plan: dict[str, Any], train_seconds: float,
                         score_checks: Sequence[dict[str, Any]] = ()) -> Path:
@@ -234,9 +241,7 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
             "recent_return": round(float(np.mean(returns)), 1) if returns else None,
             "score_checks": list(score_checks)}
     atomic_write_text(state / STATE_FILE, json.dumps(info, indent=1) + "\n")
-    for other in directory.glob("steps-*"):
-        if other != state:
-            shutil.rmtree(other, ignore_errors=True)
+    _delete_folders(directory, "steps-", but=state)
     return state
 
 
@@ -255,9 +260,7 @@ def keep_best_check(model: BaseAlgorithm, vec_normalize: VecNormalize | None, gr
     shutil.rmtree(kept, ignore_errors=True)
     save_trained_policy(model, vec_normalize, group, kept, {"observation_dims": observation_dims,
                                                             "score_check": check})
-    for other in directory.glob(f"{BEST_CHECK_PREFIX}*"):
-        if other != kept:
-            shutil.rmtree(other, ignore_errors=True)
+    _delete_folders(directory, BEST_CHECK_PREFIX, but=kept)
     return kept
 
 
@@ -517,8 +520,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
         score = partial(score_as_shipped, model, vec_normalize, spec.group, recipe.observation_dims,
                         SCORE_EPISODES, SCORE_SEED)
         if found is None:  # a fresh run: a policy kept by an earlier one in this folder is not its own
-            for other in state_dir.glob(f"{BEST_CHECK_PREFIX}*"):
-                shutil.rmtree(other)
+            _delete_folders(state_dir, BEST_CHECK_PREFIX)
         kept = best_check(state_dir)
         keep = partial(keep_best_check, model, vec_normalize, spec.group, recipe.observation_dims, state_dir)
         stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report,
