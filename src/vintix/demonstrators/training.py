@@ -213,6 +213,7 @@ class TrainingInterrupted(KeyboardInterrupt):
 
 
 STATE_FILE = "state.json"  # written last: a state folder without it is incomplete
+STATE_PREFIX = "steps-"  # + step: a saved state to resume from; only the newest is kept
 BEST_CHECK_PREFIX = "best-at-"  # + step: the best score check's policy, kept beside the newest state
 
 
@@ -228,7 +229,7 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
                         score_checks: Sequence[dict[str, Any]] = ()) -> Path:
     """Save what resuming needs into ``directory/steps-N/``, then delete older (or incomplete) states;
     `score_checks` (those of `DemonstratorRecipe.stop_at_score` so far) are kept with it."""
-    state = directory / f"steps-{model.num_timesteps:012d}"
+    state = directory / f"{STATE_PREFIX}{model.num_timesteps:012d}"
     shutil.rmtree(state, ignore_errors=True)
     state.mkdir(parents=True)
     model.save(state / "model.zip")
@@ -241,13 +242,13 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
             "recent_return": round(float(np.mean(returns)), 1) if returns else None,
             "score_checks": list(score_checks)}
     atomic_write_text(state / STATE_FILE, json.dumps(info, indent=1) + "\n")
-    _delete_folders(directory, "steps-", but=state)
+    _delete_folders(directory, STATE_PREFIX, but=state)
     return state
 
 
 def _newest_state(directory: Path) -> tuple[Path, dict[str, Any]] | None:
     """The newest complete state in `directory` and its info, if any."""
-    complete = sorted(p.parent for p in directory.glob(f"steps-*/{STATE_FILE}"))
+    complete = sorted(p.parent for p in directory.glob(f"{STATE_PREFIX}*/{STATE_FILE}"))
     return (complete[-1], json.loads((complete[-1] / STATE_FILE).read_text())) if complete else None
 
 
