@@ -2,8 +2,10 @@
 
     OMP_NUM_THREADS=1 python scripts/bench_trainers.py --task Humanoid-v5 --steps 3000
 
-Stable-Baselines3's SAC against sbx-rl's SAC and CrossQ (its JAX sibling; `pip install sbx-rl` into the
-same environment, it is not a vintix dependency: trainers it lacks are skipped). Each learns
+Stable-Baselines3's SAC against sb3-contrib's TQC and CrossQ (`pip install sb3-contrib`) and sbx-rl's SAC
+and CrossQ (its JAX sibling; `pip install sbx-rl`), installed into the same environment: neither is a
+vintix dependency, and trainers that are not installed are skipped. CrossQ runs with its library's
+default critics and, as `CrossQ 256`, with critics as wide as SAC's. Each learns
 `--warmup` steps first (random actions, then the first updates and JAX's compilation), and only the
 next `--steps` are timed. The README's table of trainer speeds comes from this script.
 """
@@ -13,16 +15,25 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import time
+from collections.abc import Callable
+from functools import partial
+from typing import Any
 
 import torch
 
 from vintix.tasks import make_env
 
 
-def trainers() -> dict[str, type]:
+def trainers() -> dict[str, Callable[..., Any]]:
     from stable_baselines3 import SAC
 
-    found: dict[str, type] = {"SB3 SAC": SAC}
+    found: dict[str, Callable[..., Any]] = {"SB3 SAC": SAC}
+    if importlib.util.find_spec("sb3_contrib") is not None:
+        import sb3_contrib
+
+        narrow = {"net_arch": {"pi": [256, 256], "qf": [256, 256]}}
+        found |= {"sb3-contrib TQC": sb3_contrib.TQC, "sb3-contrib CrossQ": sb3_contrib.CrossQ,
+                  "sb3-contrib CrossQ 256": partial(sb3_contrib.CrossQ, policy_kwargs=narrow)}
     if importlib.util.find_spec("sbx") is not None:
         import sbx
 
@@ -30,7 +41,7 @@ def trainers() -> dict[str, type]:
     return found
 
 
-def steps_per_second(algorithm: type, task: str, warmup: int, steps: int) -> float:
+def steps_per_second(algorithm: Callable[..., Any], task: str, warmup: int, steps: int) -> float:
     model = algorithm("MlpPolicy", make_env(task), learning_starts=warmup // 2, seed=0, verbose=0)
     model.learn(warmup)
     start = time.perf_counter()
@@ -46,10 +57,11 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)  # one core per run, as demonstrator training runs
     found = trainers()
-    if "sbx-rl SAC" not in found:
-        print("sbx-rl is not installed (`pip install sbx-rl`): only SB3 is measured")
+    for module, package in (("sb3_contrib", "sb3-contrib"), ("sbx", "sbx-rl")):
+        if importlib.util.find_spec(module) is None:
+            print(f"{package} is not installed (`pip install {package}`): its trainers are skipped")
     for name, algorithm in found.items():
-        print(f"{args.task}  {name:14s} {steps_per_second(algorithm, args.task, args.warmup, args.steps):6.0f} env steps/s")
+        print(f"{args.task}  {name:22s} {steps_per_second(algorithm, args.task, args.warmup, args.steps):6.0f} env steps/s")
 
 
 if __name__ == "__main__":

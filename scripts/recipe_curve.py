@@ -4,6 +4,8 @@
         --set stop_at_score=Infinity --steps 170000 --out runs/humanoid-270
     OMP_NUM_THREADS=1 python scripts/recipe_curve.py --task Humanoid-v5 --recipe-of HumanoidStandup-v5 \
         --out runs/humanoid-ppo
+    OMP_NUM_THREADS=1 python scripts/recipe_curve.py --task Humanoid-v5 --set 'algorithm="TQC"' \
+        --set timesteps=1000000 --set stop_at_score=Infinity --out runs/humanoid-tqc
 
 Trains the task's recipe (`vintix demonstrator train`'s), or `--recipe-of` another task's, with each
 `--set FIELD=JSON` of `DemonstratorRecipe` replaced, printing the mean return of the last 100 training
@@ -16,6 +18,7 @@ it ends. The README's Humanoid comparison comes from these callbacks (first run 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -23,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
+from vintix.demonstrators.trained import ALGORITHMS
 from vintix.demonstrators.training import TrainingInterrupted, recipe_for, train_demonstrator
 
 
@@ -64,6 +68,15 @@ def parse_field(assignment: str) -> tuple[str, object]:
     return name, json.loads(value)
 
 
+def register_contrib_algorithms() -> None:
+    """Lets `--set algorithm="TQC"` or `"CrossQ"` train sb3-contrib's, when it is installed beside vintix
+    (`pip install sb3-contrib`; not a vintix dependency, so nothing shipped can need it)."""
+    if importlib.util.find_spec("sb3_contrib") is not None:
+        import sb3_contrib
+
+        ALGORITHMS.update(TQC=sb3_contrib.TQC, CrossQ=sb3_contrib.CrossQ)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", required=True)
@@ -75,6 +88,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
+    register_contrib_algorithms()
     recipe = replace(recipe_for(args.recipe_of or args.task), **dict(args.set))
     callbacks = [PrintTrainingReturn(args.every)] + ([StopAt(args.steps)] if args.steps else [])
     try:
