@@ -90,6 +90,9 @@ def main() -> None:
     args = parser.parse_args()
     register_contrib_algorithms()
     recipe = replace(recipe_for(args.recipe_of or args.task), **dict(args.set))
+    if recipe.algorithm not in ALGORITHMS:
+        parser.error(f"unknown algorithm {recipe.algorithm!r}: one of {', '.join(ALGORITHMS)} "
+                     "(TQC and CrossQ need `pip install sb3-contrib`)")
     callbacks = [PrintTrainingReturn(args.every)] + ([StopAt(args.steps)] if args.steps else [])
     try:
         path = train_demonstrator(args.task, seed=args.seed, out=args.out / "weights", recipe=recipe,
