@@ -1,5 +1,5 @@
 """Evaluation: a real cold-start eval through the CLI, normalization edge cases, task selection,
-prompts, the training callback, and clear errors."""
+prompts, the reward-use ablation, the training callback, and clear errors."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from gymnasium.wrappers import RecordEpisodeStatistics
 from typer.testing import CliRunner
 
 from inference_model import one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
@@ -24,12 +25,16 @@ from vintix.evaluate import (
     ReferenceScoreError,
     evaluate,
     in_context_score,
+    in_context_scorer,
     parse_variation,
     reference,
     select_tasks,
     shots_to_show,
 )
+from vintix.evaluate.run import RewardFeed, play_shots
 from vintix.model import save_pretrained
+from vintix.tasks import make_env
+from vintix.train import ConfigError, TrainConfig
 
 
 def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
@@ -41,6 +46,8 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
     assert "wrote 8 episodes" in result.output
     # The per-shot table: one row per domain, a column per shot.
     assert "at each shot" in result.output and "metaworld train" in result.output and "shot 2" in result.output
+    # Meta-World's success rate beside its score, in both tables; MuJoCo has no success flag.
+    assert "success shot 1" in result.output and "success rate" in result.output
     rows = list(csv.DictReader((tmp_path / "results" / "episodes.csv").open()))
     assert sorted({(r["task"], r["seed"], r["shot"]) for r in rows}) == sorted(
         (t, s, k) for t in ("reach-v3", "InvertedPendulum-v5") for s in "01" for k in "12")
@@ -52,6 +59,7 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
             else:
                 expected = (float(row["return"]) - ref.random) / (ref.expert - ref.random)
                 assert float(row[f"normalized_{table}"]) == pytest.approx(expected)
+    assert {r["reward_input"] for r in rows} == {"true"}
     reach = [r for r in rows if r["task"] == "reach-v3"]
     assert {r["length"] for r in reach} == {"100"} and {r["success"] for r in reach} <= {"0.0", "1.0"}
     # different seeds are different hidden goals, so different returns
@@ -66,6 +74,7 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
     (["--prompt-steps", "-5"], "prompt_steps=-5"), (["--threads", "0"], "Invalid value for '--threads'"),
     (["--reference", "bogus"], "unknown reference table 'bogus'"), (["--device", "tpu"], "device 'tpu'"),
     (["--variation", "viscosity=nan"], "variation"),
+    (["--reward-input", "none"], "reward_input 'none' is unknown; choose one of 'true', 'zero', 'shuffled'"),
 ])
 def test_eval_settings_out_of_range_are_named_before_any_env_runs(tmp_path, option, message):
     save_pretrained(tiny_model(), tmp_path / "ckpt")
@@ -93,6 +102,8 @@ def test_eval_config_checks_types_and_ranges_in_python_too():
         EvalConfig(seeds="3")
     with pytest.raises(EvalConfigError, match="no tasks to evaluate"):
         EvalConfig(tasks=[",", ""])
+    with pytest.raises(EvalConfigError, match="reward_input 'masked' is unknown; choose one of 'true', 'zero', 'shuffled'"):
+        EvalConfig(reward_input="masked")
 
 
 def test_normalization_formula_and_expert_not_above_random_raises():
@@ -155,6 +166,52 @@ def test_a_meta_world_history_without_its_env_seed_cannot_prompt(tmp_path):
     with pytest.raises(VintixError, match="hidden goal is unknown"):
         evaluate(Agent(tiny_model()), EvalConfig(tasks=["reach-v3"], shots=1, seeds=1, prompt_from=tmp_path / "data",
                                                  prompt_steps=10))
+
+
+def test_a_feed_tells_the_model_zeros_or_the_episodes_own_rewards_out_of_order():
+    rewards = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    assert [RewardFeed("true", 0)(r) for r in rewards] == rewards
+    assert [RewardFeed("zero", 0)(r) for r in rewards] == [0.0] * 6
+    shuffled = RewardFeed("shuffled", 0)
+    fed = [shuffled(r) for r in rewards]
+    # Each step: one of the rewards the episode has returned so far (the first step has only its own).
+    assert fed[0] == 1.0 and all(f in rewards[: i + 1] for i, f in enumerate(fed)) and fed != rewards
+    again = RewardFeed("shuffled", 0)
+    assert [again(r) for r in rewards] == fed  # seeded by the env seed: reproducible
+    shuffled.new_episode()
+    assert shuffled(7.0) == 7.0  # a new episode draws from its own rewards only
+
+
+def test_zero_and_shuffled_rewards_change_what_the_model_sees_but_returns_stay_the_envs():
+    agent = Agent(tiny_model())
+
+    def returns(reward_input: str) -> list[float]:
+        rows, _ = evaluate(agent, EvalConfig(tasks=["reach-v3"], shots=2, seeds=1, reward_input=reward_input))
+        assert {r["reward_input"] for r in rows} == {reward_input}
+        return [r["return"] for r in rows]
+
+    true, zero, shuffled = returns("true"), returns("zero"), returns("shuffled")
+    assert zero != true and shuffled != true  # other rewards fed back: other actions, other episodes
+    assert returns("shuffled") == shuffled
+    # What is recorded is what the env paid, not what the model was fed (zeros would sum to 0).
+    env = RecordEpisodeStatistics(make_env("reach-v3", seed=0))
+    agent.reset(["reach-v3"], [env.action_space])
+    episodes = play_shots(agent, [env], [RewardFeed("zero", 0)], shots=2)
+    assert [e.episode_return for e in episodes[0]] == pytest.approx(list(env.return_queue)) == zero
+    assert min(zero) > 10  # reach-v3 pays a dense positive reward every step
+
+
+def test_selection_by_success_needs_a_task_with_a_success_flag_and_measures_the_reward_use_gap():
+    model = tiny_model()
+    assert 0.0 <= in_context_score(model, ["reach-v3"], shots=2, seeds=1, metric="success") <= 1.0
+    with pytest.raises(ConfigError, match=r"none of \['InvertedPendulum-v5'\] has a success flag.*select_metric 'score'"):
+        in_context_score(model, ["InvertedPendulum-v5"], shots=2, seeds=1, metric="success")
+    config = TrainConfig(select_every=10, select_shots=2, select_seeds=2)
+    selection = in_context_scorer(config)(model, ["InvertedPendulum-v5"])
+    zero = in_context_score(model, ["InvertedPendulum-v5"], shots=2, seeds=2, first_seed=1000, reward_input="zero")
+    assert selection.reward_use_gap == pytest.approx(selection.score - zero)
+    unmeasured = in_context_scorer(TrainConfig(select_every=10, select_shots=2, select_seeds=2, select_reward_gap=False))
+    assert np.isnan(unmeasured(model, ["InvertedPendulum-v5"]).reward_use_gap)
 
 
 def test_in_context_score_is_a_training_callback_that_restores_train_mode():

@@ -1,11 +1,13 @@
 """The report: figures and tables from real eval results of two checkpoints, aggregates that match
-the episodes, and clear errors."""
+the episodes, the reward-use gap of a checkpoint fed true and zero rewards, and clear errors."""
 
 from __future__ import annotations
 
 import csv
+import json
 import re
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,19 +16,23 @@ from typer.testing import CliRunner
 from inference_model import one_thread, one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent
 from vintix.cli import app
-from vintix.evaluate import EvalConfig, best_k_plateau, evaluate, iqm_with_ci
+from vintix.demonstrators.goal_blind import read_goal_blind
+from vintix.evaluate import EvalConfig, best_k_plateau, converged_gap_with_ci, evaluate, iqm_with_ci
 from vintix.report import load_results
 
 
 @pytest.fixture(scope="module")
 def two_results(tmp_path_factory):
-    """Real cold-start results of an AD-like and an AD-without-reward model on two tasks."""
+    """Real cold-start results of an AD-like and an AD-without-reward model on two tasks, and of the
+    AD-like one fed zero rewards on one of them."""
     root = tmp_path_factory.mktemp("results")
     config = EvalConfig(tasks=["reach-v3", "InvertedPendulum-v5"], shots=4, seeds=3)
     with one_thread():
         with_reward, without_reward = tiny_model(), tiny_model(seed=1, mask_reward=True)
         evaluate(Agent(with_reward), config, root / "ad", "runs/ad", "AD")
         evaluate(Agent(without_reward), config, root / "ad-no-reward", "runs/ad-no-reward", "AD without reward")
+        evaluate(Agent(with_reward), replace(config, tasks=["reach-v3"], reward_input="zero"), root / "ad-zero",
+                 "runs/ad")
     return root
 
 
@@ -42,15 +48,81 @@ def test_report_has_every_figure_and_the_aggregates_of_the_episodes(two_results,
     report = (tmp_path / "report" / "report.md").read_text()
     assert "| AD | `runs/ad`" in report and "| AD without reward | `runs/ad-no-reward`" in report
     assert all(f"]({'figures/' + name})" in report for name in expected)
+    assert "Reward-use gap" not in report  # two checkpoints, both fed true rewards: nothing to compare
 
-    # the reach-v3 row of AD: first-shot IQM with CI, and best-2-shot plateau, from the episodes themselves
+    # the reach-v3 row of AD: first-shot IQM with CI, best-2-shot plateau, and the same of the success
+    # rate (a plain mean over runs), from the episodes themselves
     rows = [r for r in csv.DictReader((two_results / "ad" / "episodes.csv").open()) if r["task"] == "reach-v3"]
     scores = np.array([[float(r["normalized_paper"]) for r in rows if r["seed"] == s] for s in "012"])
+    success = np.array([[float(r["success"]) for r in rows if r["seed"] == s] for s in "012"])
     first = iqm_with_ci(scores[:, 0])
     plateau, start = best_k_plateau(scores.mean(0), 2)
     line = next(line for line in report.splitlines() if line.startswith("| reach-v3 | AD |"))
     assert line == (f"| reach-v3 | AD | 3 | {first[0]:.2f} [{first[1]:.2f}, {first[2]:.2f}] | {plateau:.2f} | "
-                    f"{start + 1} | 1.01 |")
+                    f"{start + 1} | 1.01 | {success[:, 0].mean():.0%} | {best_k_plateau(success.mean(0), 2)[0]:.0%} | "
+                    f"{read_goal_blind()['reach-v3'].goal_blind_success:.0%} |")  # the goal-blind expert's, beside them
+    line = next(line for line in report.splitlines() if line.startswith("| InvertedPendulum-v5 | AD |"))
+    assert line.endswith("| — | — | — |")  # no success flag in MuJoCo
+
+
+def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_gap(two_results, tmp_path):
+    result = CliRunner().invoke(app, ["report", str(two_results / "ad"), str(two_results / "ad-zero"),
+                                      str(two_results / "ad-no-reward"), "--out", str(tmp_path / "report"),
+                                      "--plateau-shots", "2"])
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "## Reward-use gap" in report and "a gap near zero means the improvement over shots is not" in report
+    assert "| ad (zero rewards) | `runs/ad` | 4 | 3 | — | cold start | zero | 1 |" in report
+    true, _ = load_results(two_results / "ad", "paper")
+    zero, _ = load_results(two_results / "ad-zero", "paper")
+    assert (true.reward_input, zero.reward_input) == ("true", "zero") and true.seeds["reach-v3"] == [0, 1, 2]
+    score = converged_gap_with_ci([(true.scores["reach-v3"], zero.scores["reach-v3"])], 2, paired=True)
+    success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True)
+    cells = (f"| AD | zero | 3, paired by seed | {score[0]:+.2f} [{score[1]:+.2f}, {score[2]:+.2f}] | "
+             f"{100 * success[0]:+.0f} pp [{100 * success[1]:+.0f}, {100 * success[2]:+.0f}] |")
+    lines = report.split("## Reward-use gap")[1].splitlines()
+    # One task, so its domain's gap is its own; InvertedPendulum was not run with zeros, the other
+    # checkpoint is not compared.
+    assert [line for line in lines if "| AD |" in line] == [f"| metaworld train {cells}", f"| reach-v3 {cells}"]
+
+    alone = CliRunner().invoke(app, ["report", str(two_results / "ad-zero"), "--out", str(tmp_path / "alone")])
+    assert alone.exit_code == 0 and "no folder of its checkpoint 'runs/ad'" in " ".join(alone.output.split())
+
+
+def test_the_converged_gap_pairs_runs_by_seed_and_resamples_within_tasks():
+    rng = np.random.default_rng(0)
+    goals = rng.normal(0, 1, size=(6, 1))  # each seed's own difficulty, the same in both conditions
+    true = goals + np.linspace(0, 1, 8) + rng.normal(0, 0.05, (6, 8))  # improves over shots
+    zero = goals + rng.normal(0, 0.05, (6, 8))  # does not
+    expected = best_k_plateau(true.mean(0), 3)[0] - best_k_plateau(zero.mean(0), 3)[0]
+    point, low, high = converged_gap_with_ci([(true, zero)], 3, paired=True)
+    assert point == pytest.approx(expected) and low < point < high
+    _, low_unpaired, high_unpaired = converged_gap_with_ci([(true, zero)], 3, paired=False)
+    assert high - low < (high_unpaired - low_unpaired) / 5  # pairing keeps the seeds' spread out
+    # A domain's gap is the mean of its tasks' gaps; curves are cut to the shots both have.
+    assert converged_gap_with_ci([(true, zero), (zero, zero)], 3, paired=True)[0] == pytest.approx(expected / 2)
+    cut = best_k_plateau(true[:, :5].mean(0), 3)[0] - best_k_plateau(zero[:, :5].mean(0), 3)[0]
+    assert converged_gap_with_ci([(true[:, :5], zero)], 3, paired=True)[0] == pytest.approx(cut)
+    one = converged_gap_with_ci([(true[:1], zero[:1])], 3, paired=True)  # nothing to resample
+    assert one[0] == one[1] == one[2]
+
+
+def test_results_from_before_the_reward_ablation_read_as_true_rewards(two_results, tmp_path):
+    folder = tmp_path / "old"
+    shutil.copytree(two_results / "ad", folder)
+    rows = list(csv.DictReader((folder / "episodes.csv").open()))
+    columns = [c for c in rows[0] if c != "reward_input"]
+    with (folder / "episodes.csv").open("w") as f:
+        writer = csv.DictWriter(f, columns, extrasaction="ignore", lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    run = json.loads((folder / "run.json").read_text())
+    del run["config"]["reward_input"]
+    (folder / "run.json").write_text(json.dumps(run))
+    results, _ = load_results(folder, "paper")
+    assert results.reward_input == "true" and set(results.success) == {"reach-v3"}
+    result = CliRunner().invoke(app, ["report", str(folder), "--out", str(tmp_path / "report")])
+    assert result.exit_code == 0, result.output
 
 
 def test_our_table_normalizes_what_it_has_and_names_what_it_lacks(two_results, tmp_path):

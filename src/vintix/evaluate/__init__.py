@@ -1,6 +1,7 @@
 """Stage: many-shot in-context evaluation, normalized scores against the paper's or our references."""
 
 from vintix.evaluate.run import (
+    REWARD_INPUTS,
     EvalConfig,
     EvalConfigError,
     evaluate,
@@ -13,15 +14,17 @@ from vintix.evaluate.run import (
     summarize,
 )
 from vintix.evaluate.scores import REFERENCE_TABLES, Reference, ReferenceScoreError, reference
-from vintix.evaluate.summary import best_k_plateau, iqm, iqm_with_ci
+from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm, iqm_with_ci
 
 __all__ = [
     "REFERENCE_TABLES",
+    "REWARD_INPUTS",
     "EvalConfig",
     "EvalConfigError",
     "Reference",
     "ReferenceScoreError",
     "best_k_plateau",
+    "converged_gap_with_ci",
     "evaluate",
     "in_context_score",
     "in_context_scorer",

@@ -7,6 +7,10 @@ hidden goal for its life (drawn from its seed), so each seed is another goal to 
 across shots. Envs step together; a run leaves the batch (and the agent its context) as soon as it
 has played ``shots`` episodes, so 100-step Meta-World runs do not wait, stepping, for 1000-step
 MuJoCo runs of the same batch.
+
+Reward ablation (`EvalConfig.reward_input`): the rewards fed back to the model can be zeros, or the
+episode's own rewards drawn out of order, to measure how much of the in-context improvement the
+rewards drive. Returns, success and normalized scores always come from the env's true rewards.
 """
 
 from __future__ import annotations
@@ -14,11 +18,12 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
@@ -34,12 +39,17 @@ from vintix.evaluate.summary import best_k_plateau
 from vintix.fields import check_field_types
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, get_task, make_env, resolve_tasks
-from vintix.train.config import TrainConfig
-from vintix.train.trainer import Scorer
+from vintix.train.config import SELECT_METRICS, ConfigError, TrainConfig
+from vintix.train.trainer import Scorer, Selection
 
 EPISODES_FILE = "episodes.csv"
 RUN_FILE = "run.json"
 GOAL_PROTOCOL = "one hidden goal per env for its life, drawn from the env seed (ML45 meta-RL protocol)"
+REWARD_INPUTS = ("true", "zero", "shuffled")
+"""What `EvalConfig.reward_input` may feed back to the model."""
+_SHUFFLE_STREAM = 1
+"""Mixed into the env seed for the shuffled-reward draws: gymnasium seeds the env's own generator with
+the bare seed, and the draws should not share its stream."""
 
 
 class EvalConfigError(VintixError, ValueError):
@@ -68,6 +78,10 @@ class EvalConfig:
     """prompt length in steps (default: half the model's window)"""
     batch_envs: int = 64
     """most envs stepped through one agent at once (the KV cache grows with it)"""
+    reward_input: str = "true"
+    """the reward fed back to the model: 'true' (the env's), 'zero' (0.0) or 'shuffled' (at each step one
+    drawn at random from the rewards the env's current episode has returned so far); returns, success
+    and scores always come from the true rewards (the reward-use ablation). A prompt keeps its stored rewards"""
 
     def __post_init__(self) -> None:
         # Checked before any env runs: shots=0 used to crash only after the whole evaluation.
@@ -80,6 +94,9 @@ class EvalConfig:
                                   "first_seed >= 0")
         if not [name for selector in self.tasks for name in selector.split(",") if name.strip()]:
             raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
+        if self.reward_input not in REWARD_INPUTS:
+            raise EvalConfigError(f"reward_input {self.reward_input!r} is unknown; choose one of "
+                                  f"{', '.join(map(repr, REWARD_INPUTS))}")
 
 
 @dataclass(frozen=True)
@@ -165,9 +182,37 @@ def _canonical(task: str) -> str | None:
         return None
 
 
-def play_shots(agent: Agent, envs: Sequence[Any], shots: int, progress: Progress | None = None) -> list[list[Episode]]:
+class RewardFeed:
+    """The rewards one env's run feeds back to the model (`EvalConfig.reward_input`): the env's own,
+    zeros, or (shuffled) at each step one drawn uniformly from the rewards the current episode has
+    returned so far, this step's included: the episode's own values, their link to the states and
+    actions that earned them broken. The draws come from a generator seeded by `seed` (the env seed),
+    so a shuffled run is reproducible."""
+
+    def __init__(self, reward_input: str, seed: int) -> None:
+        self.reward_input = reward_input
+        self._episode: list[float] = []
+        self._rng = np.random.default_rng((_SHUFFLE_STREAM, seed))
+
+    def __call__(self, reward: float) -> float:
+        """What the model is told the last action earned, given the env's `reward` for it."""
+        if self.reward_input == "zero":
+            return 0.0
+        if self.reward_input == "shuffled":
+            self._episode.append(float(reward))
+            return self._episode[int(self._rng.integers(len(self._episode)))]
+        return float(reward)
+
+    def new_episode(self) -> None:
+        """Forget the finished episode's rewards."""
+        self._episode.clear()
+
+
+def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], shots: int,
+               progress: Progress | None = None) -> list[list[Episode]]:
     """Step `envs` (the agent already reset for them) until each has finished `shots` episodes; an
-    env that has is dropped from the agent's batch (`Agent.keep`)."""
+    env that has is dropped from the agent's batch (`Agent.keep`). `feeds[i]` turns env i's rewards
+    into the ones the agent is fed; episode returns and success are the env's own."""
     n = len(envs)
     observations = [env.reset()[0] for env in envs]
     rewards, starts = np.zeros(n), np.ones(n, dtype=bool)
@@ -189,9 +234,10 @@ def play_shots(agent: Agent, envs: Sequence[Any], shots: int, progress: Progress
                 if progress is not None and bar is not None:
                     progress.advance(bar)
                 observation, _ = envs[i].reset()
+                feeds[i].new_episode()
                 returns[i], lengths[i], success[i], rewards[i], starts[i] = 0.0, 0, None, 0.0, True
             else:
-                rewards[i], starts[i] = reward, False
+                rewards[i], starts[i] = feeds[i](reward), False
             observations[i] = observation
         playing = [j for j, i in enumerate(active) if len(episodes[i]) < shots]
         if len(playing) < len(active):
@@ -249,13 +295,15 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
-        results = play_shots(agent, envs, config.shots, progress)
+        feeds = [RewardFeed(config.reward_input, seed) for _, seed in batch]
+        results = play_shots(agent, envs, feeds, config.shots, progress)
     finally:
         for env in envs:
             env.close()
     return [
         {"task": spec.name, "domain": spec.domain, "split": spec.split, "group": spec.group, "seed": seed,
          "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
+         "reward_input": config.reward_input,
          "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
          "success": "" if e.success is None else e.success}
         for (spec, seed), task, episodes in zip(batch, tasks, results)
@@ -291,12 +339,12 @@ def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) ->
     return out / EPISODES_FILE, out / RUN_FILE
 
 
-def default_label(checkpoint: str) -> str:
-    """A short name for a checkpoint in reports: its folder, or 'run/step-N' for a training checkpoint."""
+def default_label(checkpoint: str, reward_input: str = "true") -> str:
+    """A short name for a checkpoint in reports: its folder, or 'run/step-N' for a training checkpoint,
+    and the rewards it was fed when not the true ones, e.g. 'ckpt (zero rewards)'."""
     path = Path(checkpoint)
-    if path.parent.name == "checkpoints":
-        return f"{path.parent.parent.name}/{path.name}"
-    return path.name or "model"
+    name = f"{path.parent.parent.name}/{path.name}" if path.parent.name == "checkpoints" else path.name or "model"
+    return name if reward_input == "true" else f"{name} ({reward_input} rewards)"
 
 
 def evaluate(
@@ -316,7 +364,7 @@ def evaluate(
     if out is not None:
         model = agent.model
         write_results(out, rows, {
-            "label": label or default_label(checkpoint),
+            "label": label or default_label(checkpoint, config.reward_input),
             "checkpoint": checkpoint,
             "model_config": asdict(model.config),
             "config": asdict(config),
@@ -331,33 +379,55 @@ def evaluate(
 
 def summarize(rows: Sequence[dict[str, Any]], table: str = "paper", plateau_shots: int = 10) -> list[dict[str, Any]]:
     """Per task and variation: mean normalized score at the first and last shot and its best
-    `plateau_shots`-shot plateau (means over seeds), beside the paper's Vintix score."""
-    by_task: dict[tuple[str, str], dict[int, list[float]]] = {}
-    for row in rows:
-        if row[f"normalized_{table}"] == "":
-            continue
-        by_task.setdefault((row["task"], row["variation"]), {}).setdefault(int(row["shot"]), []).append(
-            float(row[f"normalized_{table}"]))
+    `plateau_shots`-shot plateau (means over seeds), beside the paper's Vintix score; for tasks with a
+    success flag (Meta-World) also the success rate at the first shot and its best plateau (else None).
+    The paper's Vintix score is None for a task that is not the paper's."""
+    scores = _by_shot(rows, f"normalized_{table}", _task_variant)
+    successes = _by_shot(rows, "success", _task_variant)
     summary = []
-    for (task, variation), shots in sorted(by_task.items()):
-        curve = np.array([np.mean(shots[s]) for s in sorted(shots)])
+    for (task, variation), shots in sorted(scores.items()):
+        curve = _mean_curve(shots)
         plateau, at = best_k_plateau(curve, plateau_shots)
+        success = _mean_curve(successes[task, variation]) if (task, variation) in successes else None
+        paper = get_task(task).paper_vintix_normalized
         summary.append({"task": task, "variation": variation, "runs": len(shots[min(shots)]), "first": curve[0],
                         "last": curve[-1], "plateau": plateau, "plateau_from": at + 1,
-                        "paper_vintix": get_task(task).paper_vintix_normalized.mean})
+                        "paper_vintix": None if paper is None else paper.mean,
+                        "success_first": None if success is None else float(success[0]),
+                        "success_plateau": None if success is None else best_k_plateau(success, plateau_shots)[0]})
     return summary
 
 
-def shot_curves(rows: Sequence[dict[str, Any]], table: str = "paper") -> dict[str, np.ndarray]:
-    """Per domain (with split and variation, e.g. 'industrial_benchmark test'): the mean normalized
-    score at each shot over all its tasks and runs, shots as far as every run went."""
-    by_domain: dict[str, dict[int, list[float]]] = {}
+def shot_curves(rows: Sequence[dict[str, Any]], column: str = "normalized_paper") -> dict[str, np.ndarray]:
+    """Per domain (with split and variation, e.g. 'industrial_benchmark test'): the mean of `column`
+    (a normalized score, or 'success') at each shot over all its tasks and runs that have it, shots as
+    far as every run went."""
+    return {name: _mean_curve(shots) for name, shots in sorted(_by_shot(rows, column, _domain_name).items())}
+
+
+def _task_variant(row: dict[str, Any]) -> tuple[str, str]:
+    return row["task"], row["variation"]
+
+
+def _domain_name(row: dict[str, Any]) -> str:
+    return " ".join(part for part in (row["domain"], row["split"], row["variation"]) if part)
+
+
+_Key = TypeVar("_Key", bound=Hashable)
+
+
+def _by_shot(rows: Sequence[dict[str, Any]], column: str, key: Callable[[dict[str, Any]], _Key]
+             ) -> dict[_Key, dict[int, list[float]]]:
+    """The values of `column` per `key(row)` and shot, over the rows that have one (not empty)."""
+    grouped: dict[_Key, dict[int, list[float]]] = {}
     for row in rows:
-        if row[f"normalized_{table}"] == "":
-            continue
-        name = " ".join(part for part in (row["domain"], row["split"], row["variation"]) if part)
-        by_domain.setdefault(name, {}).setdefault(int(row["shot"]), []).append(float(row[f"normalized_{table}"]))
-    return {name: np.array([np.mean(shots[s]) for s in sorted(shots)]) for name, shots in sorted(by_domain.items())}
+        if row[column] != "":
+            grouped.setdefault(key(row), {}).setdefault(int(row["shot"]), []).append(float(row[column]))
+    return grouped
+
+
+def _mean_curve(shots: dict[int, list[float]]) -> np.ndarray:
+    return np.array([np.mean(shots[s]) for s in sorted(shots)])
 
 
 def shots_to_show(shots: int, columns: int = 12) -> list[int]:
@@ -369,19 +439,29 @@ def shots_to_show(shots: int, columns: int = 12) -> list[int]:
 
 
 def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 8, seeds: int = 3, first_seed: int = 1000,
-                     table: str = "ours") -> float:
-    """Mean normalized score (`table` reference) over the last half of `shots` cold-start shots on
-    `tasks`, `seeds` runs each: the converged in-context score. Use goals/seeds no training history
-    used (a high `first_seed`), so that the best checkpoint is the best *in context*, not the best
-    at recalling its training goals."""
+                     table: str = "ours", metric: str = "score", reward_input: str = "true") -> float:
+    """The converged in-context score: the mean over the last half of `shots` cold-start shots on
+    `tasks`, `seeds` runs each, of the normalized score (`table` reference) or, with `metric`
+    'success', of the success flag (over the tasks that have one), with `reward_input` rewards fed
+    back (`EvalConfig.reward_input`). Use goals/seeds no training history used (a high
+    `first_seed`), so that the best checkpoint is the best *in context*, not the best at recalling
+    its training goals."""
+    if metric not in SELECT_METRICS:
+        raise ConfigError(f"select_metric must be one of {', '.join(map(repr, SELECT_METRICS))}, got {metric!r}")
     was_training = model.training
     model.eval()
     try:
-        config = EvalConfig(tasks=list(tasks), shots=shots, seeds=seeds, first_seed=first_seed)
+        config = EvalConfig(tasks=list(tasks), shots=shots, seeds=seeds, first_seed=first_seed,
+                            reward_input=reward_input)
         rows, _ = evaluate(Agent(model), config)
     finally:
         model.train(was_training)
-    late = [float(r[f"normalized_{table}"]) for r in rows if r["shot"] > shots // 2 and r[f"normalized_{table}"] != ""]
+    column = "success" if metric == "success" else f"normalized_{table}"
+    late = [float(r[column]) for r in rows if r["shot"] > shots // 2 and r[column] != ""]
+    if not late and metric == "success":
+        raise ConfigError(f"none of {list(tasks)} has a success flag (Meta-World tasks have one), "
+                          "so there is no success rate to select by; use select_metric 'score', or select_tasks "
+                          "with a success flag")
     if not late:
         raise VintixError(f"no '{table}' reference score for any of {list(tasks)}: the in-context score cannot be "
                           f"normalized; choose select_reference 'paper' or select_tasks with scores")
@@ -389,12 +469,18 @@ def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 8, seeds:
 
 
 def in_context_scorer(config: TrainConfig) -> Scorer | None:
-    """The trainer's checkpoint-selection scorer for `config` (None when it selects no checkpoints)."""
+    """The trainer's checkpoint-selection scorer for `config` (None when it selects no checkpoints): the
+    `in_context_score` with true rewards fed back and, with `config.select_reward_gap`, its gap to the
+    same runs with zero rewards fed back."""
     if not config.select_every:
         return None
 
-    def score(model: Vintix, tasks: Sequence[str]) -> float:
-        return in_context_score(model, tasks, config.select_shots, config.select_seeds, config.select_first_seed,
-                                config.select_reference)
+    def select(model: Vintix, tasks: Sequence[str]) -> Selection:
+        def score(reward_input: str) -> float:
+            return in_context_score(model, tasks, config.select_shots, config.select_seeds, config.select_first_seed,
+                                    config.select_reference, config.select_metric, reward_input)
 
-    return score
+        true = score("true")
+        return Selection(true, true - score("zero") if config.select_reward_gap else math.nan)
+
+    return select

@@ -57,6 +57,8 @@ def reference(task: str, table: str = "paper") -> Reference | None:
     check_table(table)
     spec = get_task(task)
     if table == "paper":
+        if spec.paper_random is None or spec.paper_expert is None:
+            return None  # not a task of the paper
         return Reference(spec.paper_random.mean, spec.paper_expert.mean, spec.paper_expert.provenance)
     if table == "ours":
         from vintix.demonstrators.scores import our_reference_scores

@@ -1,8 +1,12 @@
-"""Aggregates of normalized scores: IQM with bootstrap confidence intervals, best-k-shot plateau."""
+"""Aggregates of normalized scores: IQM with bootstrap confidence intervals, best-k-shot plateau, and
+the gap between two conditions' converged scores (e.g. true vs zero rewards fed back)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from scipy.stats import bootstrap, trim_mean
 
 
@@ -27,11 +31,58 @@ def iqm_with_ci(values: np.ndarray, confidence: float = 0.95, resamples: int = 2
     return point, float(result.confidence_interval.low), float(result.confidence_interval.high)
 
 
+def window_means(curves: np.ndarray, k: int) -> np.ndarray:
+    """Means over every `k` consecutive shots of score-vs-shot curves (shots on the last axis); `k`
+    longer than the curves means the whole curve."""
+    curves = np.asarray(curves, dtype=np.float64)
+    return sliding_window_view(curves, max(1, min(k, curves.shape[-1])), axis=-1).mean(axis=-1)
+
+
 def best_k_plateau(curve: np.ndarray, k: int) -> tuple[float, int]:
     """The best mean over `k` consecutive shots of a score-vs-shot `curve`, and the shot it starts at:
     the paper's converged ("best k-shot") score. `k` longer than the curve means the whole curve."""
-    curve = np.asarray(curve, dtype=np.float64)
-    k = max(1, min(k, len(curve)))
-    window_means = np.convolve(curve, np.ones(k) / k, mode="valid")
-    start = int(np.nanargmax(window_means))
-    return float(window_means[start]), start
+    means = window_means(curve, k)
+    start = int(np.nanargmax(means))
+    return float(means[start]), start
+
+
+def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int, paired: bool,
+                          confidence: float = 0.95, resamples: int = 2000, seed: int = 0
+                          ) -> tuple[float, float, float]:
+    """The mean over tasks of converged(a) − converged(b), for one ``(a, b)`` pair of ``[runs, shots]``
+    arrays per task (converged: the best `k`-shot plateau of the mean curve over runs), and its
+    percentile-bootstrap confidence interval.
+
+    The bootstrap resamples runs within each task (a stratified bootstrap); with `paired`, row i of
+    `a` and of `b` are the same seed and are resampled together, which keeps the seeds' own spread
+    (e.g. Meta-World's hidden goals) out of the interval. Curves are cut to the shots both arrays of a
+    pair have. With fewer than 2 runs in some sample there is nothing to resample: the interval is
+    the point itself.
+    """
+    shots = [min(a.shape[1], b.shape[1]) for a, b in pairs]
+    pairs = [(a[:, :n], b[:, :n]) for (a, b), n in zip(pairs, shots)]
+    if paired and any(len(a) != len(b) for a, b in pairs):
+        raise ValueError("paired runs need as many runs in a as in b, row i of both being one seed")
+    # What is resampled is run indices: one sample per pair when paired, else one per array.
+    if paired:
+        samples = [np.arange(len(a)) for a, _ in pairs]
+        which = [(i, i) for i in range(len(pairs))]
+    else:
+        samples = [np.arange(len(runs)) for pair in pairs for runs in pair]
+        which = [(2 * i, 2 * i + 1) for i in range(len(pairs))]
+
+    def gap(*indices: np.ndarray, axis: int = -1) -> np.ndarray:
+        return np.mean([_converged(a[indices[i]], k) - _converged(b[indices[j]], k)
+                        for (a, b), (i, j) in zip(pairs, which)], axis=0)
+
+    point = float(gap(*samples))
+    if min(len(s) for s in samples) < 2:
+        return point, point, point
+    result = bootstrap(samples, gap, confidence_level=confidence, n_resamples=resamples, method="percentile",
+                       vectorized=True, axis=-1, random_state=np.random.default_rng(seed))
+    return point, float(result.confidence_interval.low), float(result.confidence_interval.high)
+
+
+def _converged(runs: np.ndarray, k: int) -> np.ndarray:
+    """Best k-shot plateau of the mean curve of ``[..., runs, shots]`` (leading axes: bootstrap resamples)."""
+    return window_means(runs.mean(axis=-2), k).max(axis=-1)

@@ -6,7 +6,12 @@ a task's curve is the IQM over its runs (seeds) at each shot, a domain's the IQM
 its tasks, each with a percentile-bootstrap 95 % CI over runs; a task's converged score is its best
 k-shot plateau (the best mean over k consecutive shots of its mean curve), the paper's "performance
 after reaching inference-time convergence". Several result folders (e.g. AD, ED, AD without
-reward) share every figure and table, one line or bar each.
+reward) share every figure and table, one line or bar each. Tasks with a success flag (Meta-World)
+also get their success rate (a plain mean over runs, shot 1 and converged).
+
+Folders of one checkpoint evaluated with true rewards and with zero or shuffled rewards fed back
+(`vintix eval --reward-input`) add a reward-use gap section: how much of the converged score the
+rewards earn.
 """
 
 from __future__ import annotations
@@ -16,15 +21,17 @@ import json
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
 
 from vintix.atomic import atomic_path, atomic_write_text
+from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.scores import Reference, check_table, missing_reference_note, reference
-from vintix.evaluate.summary import best_k_plateau, iqm_with_ci
+from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci
 from vintix.tasks import get_task
 
 
@@ -41,6 +48,12 @@ class Results:
     """variant -> its domain and split, and variation: held-out tasks and physics aggregate apart"""
     tasks: dict[str, str]
     """variant -> task name"""
+    success: dict[str, np.ndarray]
+    """variant -> success flag (0/1) per run and shot, like `scores`; only variants whose task has one"""
+    seeds: dict[str, list[int]]
+    """variant -> env seed of each run (row), in order: runs of two folders pair by seed"""
+    reward_input: str
+    """the rewards fed back to the model (`EvalConfig.reward_input`; 'true' for folders from before it)"""
 
 
 EPISODE_COLUMNS = {"task", "variation", "seed", "prompt_steps", "shot", "return", "domain", "split"}
@@ -64,7 +77,8 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
         raise VintixError(f"{run_file}: not valid JSON ({error}); {rewrite}") from error
     if not isinstance(run, dict):
         raise VintixError(f"{run_file}: expected a JSON object; {rewrite}")
-    runs: dict[str, dict[tuple[int, str], dict[int, float]]] = defaultdict(lambda: defaultdict(dict))
+    # variant -> run (seed, prompt) -> shot -> (normalized score, success flag or NaN)
+    runs: dict[str, dict[tuple[int, str], dict[int, tuple[float, float]]]] = defaultdict(lambda: defaultdict(dict))
     domains, tasks, refs, missing = {}, {}, {}, []
     with episodes.open() as f:
         reader = csv.DictReader(f)
@@ -83,19 +97,26 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
                 if ref is None:
                     continue
                 normalized = float(ref.normalize(float(row["return"])))
-                runs[variant][(int(row["seed"]), row["prompt_steps"])][int(row["shot"])] = normalized
+                success = float(row.get("success") or "nan")  # empty for envs without a success flag
+                runs[variant][(int(row["seed"]), row["prompt_steps"])][int(row["shot"])] = normalized, success
             except (ValueError, TypeError) as error:  # a hand-edited or foreign table
                 raise VintixError(f"{episodes}, line {line}: {error}; {rewrite}") from error
             domains[variant] = _variant(f"{row['domain']} {row['split']}", row["variation"])
             tasks[variant] = task
     if line == 1:
         raise VintixError(f"{episodes}: holds no episodes; {rewrite}")
-    scores = {}
+    scores, success, seeds = {}, {}, {}
     for variant, by_run in runs.items():
         shots = min(len(s) for s in by_run.values())
-        scores[variant] = np.array([[s[k] for k in sorted(s)[:shots]] for s in by_run.values()])
+        ordered = sorted(by_run)
+        both = np.array([[by_run[r][k] for k in sorted(by_run[r])[:shots]] for r in ordered])  # [runs, shots, 2]
+        scores[variant], seeds[variant] = both[..., 0], [seed for seed, _ in ordered]
+        if not np.isnan(both[..., 1]).any():
+            success[variant] = both[..., 1]
     notes = [f"{folder}: " + missing_reference_note(missing, table)] if missing else []
-    return Results(run.get("label") or folder.name, folder, run, scores, domains, tasks), notes
+    reward_input = run.get("config", {}).get("reward_input", "true")
+    return Results(run.get("label") or folder.name, folder, run, scores, domains, tasks, success, seeds,
+                   reward_input), notes
 
 
 def curve_with_ci(scores: np.ndarray) -> np.ndarray:
@@ -156,9 +177,95 @@ def _ci(point: float, low: float, high: float) -> str:
     return f"{point:.2f} [{low:.2f}, {high:.2f}]"
 
 
+def _rate(rate: float) -> str:
+    return f"{rate:.0%}"
+
+
+def _signed(value: float, digits: int) -> str:
+    """`value` with its sign, and no "-0" for a value that rounds to zero."""
+    rounded = round(value, digits) + 0.0  # + 0.0 turns -0.0 into 0.0
+    return f"{rounded:+.{digits}f}"
+
+
+def _score_gap(point: float, low: float, high: float) -> str:
+    return f"{_signed(point, 2)} [{_signed(low, 2)}, {_signed(high, 2)}]"
+
+
+def _success_gap(point: float, low: float, high: float) -> str:
+    """A success-rate difference in percentage points."""
+    return f"{_signed(100 * point, 0)} pp [{_signed(100 * low, 0)}, {_signed(100 * high, 0)}]"
+
+
+def _same_runs(r: Results) -> tuple[str, str, Any]:
+    """What must match for two folders to differ only in the rewards fed back: the checkpoint and the
+    prompt (variation and seeds are matched per task variant and run)."""
+    config = r.run.get("config", {})
+    prompt_from = config.get("prompt_from")
+    return r.run.get("checkpoint", ""), str(prompt_from), config.get("prompt_steps") if prompt_from else None
+
+
+def reward_ablations(results: list[Results]) -> tuple[list[tuple[Results, Results]], list[str]]:
+    """Every (true, ablated) pair of folders that differ only in the rewards fed back (the same
+    checkpoint and prompt, one fed the true rewards, the other zeros or shuffled ones), in the order
+    given, and notes on ablated folders without a true-reward folder to compare with."""
+    trues = [r for r in results if r.reward_input == "true" and r.run.get("checkpoint")]  # unnamed: unmatchable
+    pairs, notes = [], []
+    for other in (r for r in results if r.reward_input != "true"):
+        matches = [(true, other) for true in trues if _same_runs(true) == _same_runs(other)]
+        if not matches:
+            notes.append(f"{other.folder} was fed {other.reward_input} rewards, but no folder of its checkpoint "
+                         f"{other.run.get('checkpoint', '')!r} (and prompt) fed the true ones was given: no "
+                         "reward-use gap for it")
+        pairs += matches
+    return pairs, notes
+
+
+def _gap_cells(true: Results, other: Results, variants: list[str], k: int) -> list[str]:
+    """Runs, and the mean over `variants` of converged(true) − converged(other) with its CI, for the
+    normalized score and (where every variant has one) the success rate."""
+    paired = all(true.seeds[v] == other.seeds[v] for v in variants)
+    if paired:
+        runs = f"{sum(len(true.seeds[v]) for v in variants)}, paired by seed"
+    else:
+        runs = f"{sum(len(true.seeds[v]) for v in variants)} vs {sum(len(other.seeds[v]) for v in variants)}"
+    score = converged_gap_with_ci([(true.scores[v], other.scores[v]) for v in variants], k, paired)
+    with_success = all(v in true.success and v in other.success for v in variants)
+    success = (_success_gap(*converged_gap_with_ci([(true.success[v], other.success[v]) for v in variants], k, paired))
+               if with_success else "—")
+    return [runs, _score_gap(*score), success]
+
+
+def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int) -> list[str]:
+    """The report's reward-use gap section (markdown lines) for (true, ablated) folder pairs."""
+    lines = ["\n## Reward-use gap\n",
+             "In-context RL means the rewards do the work: the same model with zeros or shuffled rewards fed back "
+             "should do worse; a gap near zero means the improvement over shots is not reward-driven. "
+             "Shuffled rewards keep each episode's own reward values but break their link to the states and "
+             "actions that earned them. Every score below comes from the true returns; only what the model was "
+             f"fed differs. Δ = converged(true) − converged(ablated), *converged* the best {k}-shot plateau of a "
+             "task's mean curve; a domain's Δ is the mean of its tasks' Δ. 95 % CIs: percentile bootstrap "
+             "resampling runs within each task, a seed's two runs (same env, same Meta-World goal) together when "
+             "both folders ran the same seeds.\n"]
+    columns = (f"model (true rewards) | fed back instead | runs | Δ converged score ({table}) | Δ converged success |"
+               "\n|---|---|---|---|---|---|")
+    domain_lines, task_lines = [f"| domain | {columns}"], [f"| task | {columns}"]
+    for true, other in pairs:
+        fed = other.reward_input if other.reward_input in other.label else f"{other.reward_input}: {other.label}"
+        common = sorted(set(true.scores) & set(other.scores))
+        for domain in sorted({true.domains[v] for v in common}):
+            variants = [v for v in common if true.domains[v] == domain]
+            domain_lines.append(f"| {domain} | {true.label} | {fed} | " + " | ".join(_gap_cells(true, other, variants, k))
+                                + " |")
+        for variant in common:
+            task_lines.append(f"| {variant} | {true.label} | {fed} | "
+                              + " | ".join(_gap_cells(true, other, [variant], k)) + " |")
+    return lines + ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
+
+
 def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_shots: int = 10) -> tuple[Path, list[str]]:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
-    Returns the report's path and notes (tasks without a reference score)."""
+    Returns the report's path and notes (tasks without a reference score, ablated folders without a
+    true-reward folder to compare with)."""
     if plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     loaded = [load_results(Path(folder), table) for folder in folders]
@@ -171,46 +278,57 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     if len(set(labels)) < len(labels):  # the same checkpoint evaluated twice: tell them apart
         for r in results:
             r.label = f"{r.label} ({r.folder.name})"
+    with_success = any(r.success for r in results)
     figures = out / "figures"
     lines = ["# In-context evaluation report\n",
              f"Normalized score `(R − random) / (expert − random)` with the **{table}** reference table; "
              f"curves are IQMs over runs with percentile-bootstrap 95 % CIs; *converged* is the best "
-             f"{plateau_shots}-shot plateau of a task's mean curve (paper §3).\n",
-             "| label | checkpoint | shots | runs/task | variation | prompt steps | tasks |", "|---|---|---|---|---|---|---|"]
+             f"{plateau_shots}-shot plateau of a task's mean curve (paper §3)."
+             + (" Success rates (tasks with a success flag) are means over runs." if with_success else "") + "\n",
+             "| label | checkpoint | shots | runs/task | variation | prompt steps | rewards fed back | tasks |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in results:
         config = r.run.get("config", {})
         variation = ", ".join(f"{k}={v}" for k, v in config.get("variation", {}).items()) or "—"
         prompt = config.get("prompt_steps") if config.get("prompt_from") else "cold start"
         lines.append(f"| {r.label} | `{r.run.get('checkpoint', '')}` | {config.get('shots', '?')} | "
-                     f"{config.get('seeds', '?')} | {variation} | {prompt} | {len(r.scores)} |")
+                     f"{config.get('seeds', '?')} | {variation} | {prompt} | {r.reward_input} | {len(r.scores)} |")
     goal = {r.run.get("goal_protocol") for r in results} - {None}
     if goal:
         lines.append(f"\nMeta-World goal protocol: {'; '.join(sorted(goal))}.\n")
 
-    lines += ["\n## Per domain\n", f"| domain ({table}-normalized) | " + " | ".join(f"{r.label}: shot 1 | {r.label}: converged" for r in results)
-              + " |", "|---|" + "---|---|" * len(results)]
+    per_label = ["shot 1", "converged"] + (["success shot 1", "success converged"] if with_success else [])
+    lines += ["\n## Per domain\n",
+              f"| domain ({table}-normalized) | " + " | ".join(f"{r.label}: {c}" for r in results for c in per_label) + " |",
+              "|---|" + "---|" * len(per_label) * len(results)]
     domains = sorted({d for r in results for d in r.domains.values()})
     for domain in domains:
         curves, cells = {}, []
         for r in results:
             variants = [v for v, d in r.domains.items() if d == domain]
             if not variants:
-                cells += ["—", "—"]
+                cells += ["—"] * len(per_label)
                 continue
             shots = min(r.scores[v].shape[1] for v in variants)
             pooled = np.concatenate([r.scores[v][:, :shots] for v in variants])
             curves[r.label] = (curve_with_ci(pooled), len(pooled))
             plateaus = np.array([converged(r.scores[v], plateau_shots)[0] for v in variants])
             cells += [_ci(*curves[r.label][0][0]), _ci(*iqm_with_ci(plateaus))]
+            if with_success:
+                cells += _success_cells(r, variants, plateau_shots)
         plot_curves(curves, f"{domain}: normalized score vs shot", figures / f"domain-{_slug(domain)}.png")
         lines.append(f"| {domain} | " + " | ".join(cells) + " |")
     lines.append("")
     for domain in domains:
         lines.append(f"![{domain}](figures/domain-{_slug(domain)}.png)")
 
+    # The goal-blind expert's success (demonstrators/goal_blind.csv) beside shot 1 and converged: what a
+    # model reaches without reading a single reward.
+    goal_blind = read_goal_blind()
+    success_columns = " success shot 1 | success converged | goal-blind success |" if with_success else ""
     lines += ["\n## Per task\n", f"| task ({table}-normalized) | label | runs | shot 1 | converged | from shot | "
-              "paper's Vintix |",
-              "|---|---|---|---|---|---|---|"]
+              "paper's Vintix |" + success_columns,
+              "|---|---|---|---|---|---|---|" + ("---|---|---|" if with_success else "")]
     bars = []
     for variant in sorted({v for r in results for v in r.scores}):
         curves = {}
@@ -220,17 +338,36 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
             scores = r.scores[variant]
             curves[r.label] = (curve_with_ci(scores), len(scores))
             value, start = converged(scores, plateau_shots)
-            spec = get_task(r.tasks[variant])
-            paper = spec.paper_vintix_normalized.mean if table == "paper" and "[" not in variant else None
+            published = get_task(r.tasks[variant]).paper_vintix_normalized
+            paper = published.mean if table == "paper" and "[" not in variant and published is not None else None
             bars.append((variant, r.label, float(scores[:, 0].mean()), value, paper))
-            lines.append(f"| {variant} | {r.label} | {len(scores)} | {_ci(*curves[r.label][0][0])} | {value:.2f} | "
-                         f"{start} | {'—' if paper is None else f'{paper:.2f}'} |")
+            cells = [variant, r.label, str(len(scores)), _ci(*curves[r.label][0][0]), f"{value:.2f}", str(start),
+                     "—" if paper is None else f"{paper:.2f}"]
+            if with_success:
+                blind = goal_blind.get(r.tasks[variant])
+                cells += _success_cells(r, [variant], plateau_shots)
+                cells.append("—" if blind is None else _rate(blind.goal_blind_success))
+            lines.append("| " + " | ".join(cells) + " |")
         plot_curves(curves, variant, figures / "tasks" / f"{_slug(variant)}.png")
     plot_first_vs_converged(bars, plateau_shots, figures / "first-vs-converged.png")
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
     lines += [f"![{v}](figures/tasks/{_slug(v)}.png)" for v in sorted({v for r in results for v in r.scores})]
+    ablations, unmatched = reward_ablations(results)
+    notes += unmatched
+    if ablations:
+        lines += reward_gap_section(ablations, table, plateau_shots)
     if notes:
         lines += ["\n## Notes\n"] + [f"- {n}" for n in notes]
     path = out / "report.md"
     atomic_write_text(path, "\n".join(lines) + "\n")
     return path, notes
+
+
+def _success_cells(r: Results, variants: list[str], k: int) -> list[str]:
+    """The success rate of a task variant, or of a domain's `variants`, at shot 1 (over all their runs)
+    and converged (the mean of their converged rates); dashes where none has a success flag."""
+    rated = [v for v in variants if v in r.success]
+    if not rated:
+        return ["—", "—"]
+    first = np.concatenate([r.success[v][:, 0] for v in rated]).mean()
+    return [_rate(first), _rate(float(np.mean([converged(r.success[v], k)[0] for v in rated])))]
