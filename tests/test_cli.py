@@ -12,10 +12,11 @@ from vintix.cli import app
 runner = CliRunner()
 
 
-def test_tasks_lists_all_102():
+def test_tasks_lists_the_papers_102_and_the_toy_task():
     result = runner.invoke(app, ["tasks"])
     assert result.exit_code == 0
-    assert "102 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
+    assert "103 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
+    assert "point-goal-v1" in result.output
 
 
 def test_tasks_filters_by_domain_and_split():

@@ -18,7 +18,7 @@ from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
-from vintix.tasks import TaskSpec, get_task, list_tasks, resolve_tasks
+from vintix.tasks import ReferenceScore, TaskSpec, get_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
     from vintix.collect import CollectionPlan
@@ -74,6 +74,11 @@ def _score(mean: float, std: float | None) -> str:
     return f"{mean:.1f}±{std:.1f}" if std is not None else f"{mean:.1f}"
 
 
+def _paper_score(score: ReferenceScore | None) -> str:
+    """A published score, or a dash for a task that is not the paper's."""
+    return "—" if score is None else _score(score.mean, score.std)
+
+
 @app.command()
 def tasks(
     domain: Annotated[Optional[str], typer.Option(help="mujoco, metaworld, industrial_benchmark or bidexhands")] = None,
@@ -91,7 +96,7 @@ def tasks(
     for t in selected:
         table.add_row(
             t.name, t.domain, t.group, str(t.obs_dim), str(t.act_dim), str(t.episode_length), f"{t.reward_scale:g}",
-            t.split, _score(t.paper_random.mean, t.paper_random.std), _score(t.paper_expert.mean, t.paper_expert.std),
+            t.split, _paper_score(t.paper_random), _paper_score(t.paper_expert),
         )
     console.print(table)
 
@@ -288,6 +293,7 @@ def demonstrator_eval(
     """Score demonstrators and a uniform-random policy; record both in a score table (--out)."""
     from vintix.demonstrators import load_demonstrator
     from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores, scores_path
+    from vintix.evaluate.scores import reference
 
     if weights is not None and update_package_table:
         raise _fail(VintixError(f"--update-package-table records the shipped demonstrators, not those in {weights}: "
@@ -309,14 +315,46 @@ def demonstrator_eval(
     for column in ("task", "demonstrator", "random", "paper expert", "paper random", "normalized"):
         result.add_column(column, justify="left" if column == "task" else "right")
     for spec, (ours, random) in zip(specs, zip(rows[::2], rows[1::2])):
-        normalized = (ours.mean - spec.paper_random.mean) / (spec.paper_expert.mean - spec.paper_random.mean)
+        paper = reference(spec.name, "paper")
         result.add_row(spec.name, _score(ours.mean, ours.std), _score(random.mean, random.std),
-                       _score(spec.paper_expert.mean, spec.paper_expert.std),
-                       _score(spec.paper_random.mean, spec.paper_random.std), f"{normalized:.2f}")
+                       _paper_score(spec.paper_expert), _paper_score(spec.paper_random),
+                       "—" if paper is None else f"{float(paper.normalize(ours.mean)):.2f}")
     console.print(result)
     console.print(f"wrote {len(rows)} scores to {record_scores(rows, out)}")
     if update_package_table:
         console.print(f"updated the package's reference table {record_scores(rows, scores_path())}")
+
+
+@demonstrator_app.command("goal-blind")
+def demonstrator_goal_blind(
+    task: Annotated[list[str], typer.Option(help="task or domain (metaworld, toy); repeat for several")],
+    seeds: Annotated[int, typer.Option(min=1, help="episodes per policy, env seeds first-seed, first-seed + 1, ...")] = 20,
+    first_seed: Annotated[int, typer.Option(min=0)] = 100,
+    out: Annotated[Path, typer.Option(help="table to add the measured rows to (created if missing)")] = Path(
+        "goal-blind.csv"),
+    update_package_table: Annotated[bool, typer.Option(
+        "--update-package-table", help="also rewrite the package's table (demonstrators/goal_blind.csv)")] = False,
+) -> None:
+    """Which tasks hide information: the scripted expert's success aimed at the true goal vs at the mean goal."""
+    from vintix.demonstrators.goal_blind import goal_blind_baseline, goal_blind_path, write_goal_blind
+
+    try:
+        specs = resolve_tasks(task)
+        command = f"vintix demonstrator goal-blind --task {{task}} --seeds {seeds} --first-seed {first_seed}"
+        results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name))
+                   for spec in track(specs, description="goal-blind baselines", console=console)]
+    except (VintixError, ValueError) as error:
+        raise _fail(error)
+    table = Table(title=f"success over {seeds} episodes (env seeds {first_seed}..{first_seed + seeds - 1})")
+    for column in ("task", "true goal", "goal-blind", "hidden information", "return: true goal", "return: goal-blind"):
+        table.add_column(column, justify="left" if column == "task" else "right")
+    for r in sorted(results, key=lambda r: -r.hidden_information):
+        table.add_row(r.task, f"{r.true_goal_success:.2f}", f"{r.goal_blind_success:.2f}", f"{r.hidden_information:+.2f}",
+                      f"{r.true_goal_return:.1f}", f"{r.goal_blind_return:.1f}")
+    console.print(table)
+    console.print(f"wrote {len(results)} rows to {write_goal_blind(results, out)}")
+    if update_package_table:
+        console.print(f"updated the package's table {write_goal_blind(results, goal_blind_path())}")
 
 
 @demonstrator_app.command("list")
@@ -343,7 +381,7 @@ def demonstrator_list() -> None:
                 kind = "none: `vintix demonstrator train`"
         ours = scores.get((spec.name, "demonstrator"))
         result.add_row(spec.name, kind, training, "—" if ours is None else _score(ours.mean, ours.std),
-                       _score(spec.paper_expert.mean, spec.paper_expert.std))
+                       _paper_score(spec.paper_expert))
     console.print(result)
 
 
@@ -677,6 +715,10 @@ def eval_command(
     reference: Annotated[str, typer.Option(help="reference table of the printed summary: paper or ours")] = "paper",
     label: Annotated[Optional[str], typer.Option(help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
+    reward_input: Annotated[str, typer.Option(
+        metavar="true|zero|shuffled", help="rewards fed back to the model: the env's (true), zeros, or the episode's "
+        "own in random order (shuffled), to measure how much the rewards drive the in-context gains; scores and "
+        "success are always computed from the true returns")] = "true",
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
                                          "tiny ops that a second thread slows down on a busy machine")] = 1,
@@ -695,7 +737,7 @@ def eval_command(
         check_table(reference)  # summarize() would otherwise meet it only after the whole run
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
-                            prompt_steps=prompt_steps, batch_envs=batch_envs)
+                            prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input)
         checkpoint = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(checkpoint, device)
         with Progress(console=console) as progress:
@@ -705,24 +747,41 @@ def eval_command(
         raise _fail(error)
     for note in notes:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
-    table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task")
-    for column in ("task", "variation", "shot 1", f"shot {shots}", f"best {min(10, shots)}-shot plateau", "from shot",
-                   "paper's Vintix (paper table)"):
+    if reward_input != "true":
+        console.print(f"rewards fed back to the model: {reward_input}; scores and success from the true returns")
+    plateau = f"best {min(10, shots)}-shot plateau"
+    with_success = any(s["success_first"] is not None for s in summary)
+    table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task"
+                        + ("; success rate where the task has a success flag" if with_success else ""))
+    columns = ["task", "variation", "shot 1", f"shot {shots}", plateau, "from shot", "paper's Vintix (paper table)"]
+    for column in columns + (["success shot 1", f"success {plateau}"] if with_success else []):
         table.add_column(column, justify="left" if column in ("task", "variation") else "right")
     for s in summary:
-        table.add_row(s["task"], s["variation"] or "—", f"{s['first']:.2f}", f"{s['last']:.2f}", f"{s['plateau']:.2f}",
-                      str(s["plateau_from"]), f"{s['paper_vintix']:.2f}")
+        paper = "—" if s["paper_vintix"] is None else f"{s['paper_vintix']:.2f}"
+        cells = [s["task"], s["variation"] or "—", f"{s['first']:.2f}", f"{s['last']:.2f}", f"{s['plateau']:.2f}",
+                 str(s["plateau_from"]), paper]
+        if with_success:
+            cells += [_rate(s["success_first"]), _rate(s["success_plateau"])]
+        table.add_row(*cells)
     console.print(table)
-    curves = shot_curves(rows, reference)
     shown = shots_to_show(shots)
     per_shot = Table(title=f"in context: mean normalized score ({reference} reference) at each shot, over tasks and runs")
     per_shot.add_column("domain")
     for shot in shown:
         per_shot.add_column(f"shot {shot}", justify="right")
-    for domain, curve in curves.items():
+    scores, successes = shot_curves(rows, f"normalized_{reference}"), shot_curves(rows, "success")
+    for domain, curve in scores.items():
         per_shot.add_row(domain, *(f"{curve[shot - 1]:.2f}" if shot <= len(curve) else "" for shot in shown))
+        if domain in successes:
+            success = successes[domain]
+            per_shot.add_row("  success rate", *(_rate(success[shot - 1]) if shot <= len(success) else "" for shot in shown))
     console.print(per_shot)
     console.print(f"wrote {len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}")
+
+
+def _rate(rate: float | None) -> str:
+    """A success rate as a percentage, or a dash for a task without a success flag."""
+    return "—" if rate is None else f"{rate:.0%}"
 
 
 @app.command("report")

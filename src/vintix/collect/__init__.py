@@ -9,5 +9,6 @@ from vintix.collect.collector import (
     history_seeds,
 )
 from vintix.collect.noise import NoiseSchedule, mix_action
+from vintix.collect.recipe import load_recipe
 
-__all__ = ["CollectionError", "CollectionPlan", "CollectionSettingsError", "HistorySummary", "NoiseSchedule", "collect", "history_seeds", "mix_action"]
+__all__ = ["CollectionError", "CollectionPlan", "CollectionSettingsError", "HistorySummary", "NoiseSchedule", "collect", "history_seeds", "load_recipe", "mix_action"]

@@ -8,8 +8,12 @@ complete, so re-running an interrupted collection finishes exactly what is missi
 same bytes as an uninterrupted run even if the demonstrator's batched numerics depend on the batch.
 
 Each history records the settings it was made with (root attributes: env seed, base seed, steps,
-noise schedule, with the knots its pilot fitted if it had one) and, per step, the demonstrator's
-action before noise (``demonstrator_action``).
+noise schedule, with the knots its pilot fitted if it had one, and the demonstrator's behaviour when
+it is not the expert's) and, per step, the demonstrator's action before noise
+(``demonstrator_action``). A demonstrator that infers the hidden goal from rewards
+(``behaviour: posterior-sampling``, `vintix.demonstrators.posterior`) plays the history, and the
+goal-aware expert's action is what ``demonstrator_action`` records: the action a model can only
+predict by reading the context's rewards.
 Re-running into a folder whose histories were made with other settings is refused
 (`CollectionSettingsError`): skipping them as "already done" would silently keep the wrong data.
 """
@@ -31,7 +35,7 @@ from vintix import cluster
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
-from vintix.demonstrators import Demonstrator, load_demonstrator
+from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
 from vintix.tasks import TaskSpec, get_task, make_env
@@ -60,6 +64,9 @@ class CollectionPlan:
     envs_per_batch: int = 16
     """Histories stepped in lockstep in one process (one batched demonstrator call per step; more
     histories per call leave more of the process's time to the simulator, `vintix bench collect`)."""
+    behaviour: str = "expert"
+    """How the demonstrator plays: 'expert' (sees the hidden goal) or 'posterior-sampling' (infers it
+    from the rewards it earns; Meta-World and toy tasks)."""
 
     def __post_init__(self) -> None:
         check_field_types(self, CollectionError)
@@ -71,11 +78,19 @@ class CollectionPlan:
                                   "seed >= 0")
         if self.schedule.pilot_steps and self.schedule.knots:
             raise CollectionError(f"{self.task}: give knots or pilot_steps, not both (a pilot fits each history's knots)")
+        if self.behaviour not in BEHAVIOURS:
+            raise CollectionError(f"{self.task}: unknown behaviour {self.behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
+        if self.behaviour != "expert" and self.schedule.pilot_steps:
+            raise CollectionError(f"{self.task}: pilot_steps fit knots to the expert's answer to noise; a "
+                                  f"{self.behaviour} history has no such answer: drop pilot_steps")
 
     def recorded_settings(self, index: int) -> dict[str, Any]:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
         env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
-        return {"env_seed": env_seed, "collection_seed": self.seed, "steps": self.steps, **self.schedule.recorded()}
+        # Only a behaviour other than the expert's is recorded, so expert histories keep their bytes.
+        behaviour = {} if self.behaviour == "expert" else {"behaviour": self.behaviour}
+        return {"env_seed": env_seed, "collection_seed": self.seed, "steps": self.steps, **self.schedule.recorded(),
+                **behaviour}
 
 
 @dataclass(frozen=True)
@@ -108,14 +123,17 @@ class HistorySeeds(NamedTuple):
     pilot_noise: np.random.Generator
     """The noise of its pilot run (`NoiseSchedule.pilot_steps`), a stream of its own so that histories
     without a pilot are the same as before pilots existed."""
+    demonstrator: np.random.Generator
+    """The draws of a demonstrator that learns within the history (its goal guesses); a stream of its own."""
 
 
 def history_seeds(task: str, index: int, seed: int) -> HistorySeeds:
     """The seeds of one history; crc32 because Python's str hash changes per process."""
     sequence = np.random.SeedSequence([seed, zlib.crc32(task.encode()), index])
-    env_sequence, noise_sequence, pilot_sequence = sequence.spawn(3)
+    # Children are numbered: a fourth stream leaves the first three (and older histories) unchanged.
+    env_sequence, noise_sequence, pilot_sequence, demonstrator_sequence = sequence.spawn(4)
     return HistorySeeds(int(env_sequence.generate_state(1)[0]), np.random.default_rng(noise_sequence),
-                        np.random.default_rng(pilot_sequence))
+                        np.random.default_rng(pilot_sequence), np.random.default_rng(demonstrator_sequence))
 
 
 def batches(plan: CollectionPlan) -> list[list[int]]:
@@ -158,7 +176,7 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     """Collect histories `indices` of `plan.task` together, writing one file each (after each one's
     pilot run, if the schedule has one)."""
     spec = get_task(plan.task)
-    demonstrator = demonstrator or load_demonstrator(spec.name)
+    demonstrator = demonstrator or load_demonstrator(spec.name, behaviour=plan.behaviour)
     seeds = [history_seeds(spec.name, i, plan.seed) for i in indices]
     envs = [make_env(spec.name, seed=s.env_seed) for s in seeds]
     label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
@@ -174,7 +192,7 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
         distinct = schedules if plan.schedule.pilot_steps else schedules[:1]
         epsilons = np.stack([schedule.epsilon(np.arange(plan.steps), plan.steps) for schedule in distinct], axis=1)
         _play(envs, demonstrator, epsilons, [s.noise for s in seeds], label, progress_position,
-              lambda block, start, rows: block.write(rows, writers))
+              lambda block, start, rows: block.write(rows, writers), [s.demonstrator for s in seeds])
         return [writer.close() for writer in writers]
     except BaseException:
         for writer in writers:
@@ -206,7 +224,8 @@ def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrat
 
 
 def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray, rngs: Sequence[np.random.Generator],
-          label: str, progress_position: int, on_block: Callable[[_Block, int, int], None]) -> None:
+          label: str, progress_position: int, on_block: Callable[[_Block, int, int], None],
+          demonstrator_rngs: Sequence[np.random.Generator] = ()) -> None:
     """Play `envs` from a reset for ``len(epsilons)`` steps, env i at noise ``epsilons[t, i]`` (or all at
     ``epsilons[t, 0]`` when it has one column), handing each full block of rows to
     ``on_block(block, first step, rows)``.
@@ -214,8 +233,13 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
     The envs step in lockstep: one batched demonstrator call per step, the noise mixed in for all
     histories at once, rows buffered for `BLOCK_STEPS` steps. Each history's noise still comes from
     its own RNG, drawn in the order a step-by-step loop would draw it, so the data do not depend on
-    the block size.
+    the block size. A demonstrator that learns within the history (`GoalInferringDemonstrator`) starts
+    afresh with `demonstrator_rngs`, is told what every step earned, and its goal-aware expert's action
+    is the row's demonstrator action.
     """
+    learner = demonstrator if isinstance(demonstrator, GoalInferringDemonstrator) else None
+    if learner is not None:
+        learner.begin(envs, demonstrator_rngs)
     total = len(epsilons)
     low, high = envs[0].action_space.low, envs[0].action_space.high
     obs_dim, act_dim = envs[0].observation_space.shape[0], len(low)
@@ -229,14 +253,17 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
             for i, rng in enumerate(rngs):
                 block.noise[:size, i] = rng.uniform(low, high, size=(size, len(low)))
         # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
-        expert = np.clip(demonstrator.act(observations, envs), low, high)
+        proposal = np.clip(demonstrator.act(observations, envs), low, high)
+        target = proposal if learner is None else np.clip(learner.expert_act(observations, envs), low, high)
         # float32 before stepping, so the action stored is exactly the action executed.
-        actions = mix_action(expert, epsilons[t][:, None], block.noise[k]).astype(np.float32)
-        block.observation[k], block.action[k], block.demonstrator_action[k] = observations, actions, expert
+        actions = mix_action(proposal, epsilons[t][:, None], block.noise[k]).astype(np.float32)
+        block.observation[k], block.action[k], block.demonstrator_action[k] = observations, actions, target
         block.step_num[k] = step_nums
         for i, env in enumerate(envs):
             next_obs, reward, terminated, truncated, _ = env.step(actions[i])
             block.reward[k, i] = reward
+            if learner is not None:
+                learner.observe(i, env, actions[i], float(reward), terminated or truncated)
             if terminated or truncated:
                 next_obs, _ = env.reset()
                 step_nums[i] = 0
@@ -258,6 +285,8 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         schedule = NoiseSchedule.from_recorded(found)
         found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
         recorded.setdefault("pilot_steps", 0)
+        found.setdefault("behaviour", "expert")  # recorded only when it is not the expert's
+        recorded.setdefault("behaviour", "expert")
         if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare
             recorded.setdefault("knots", [])
     return differences + [f"{key} {found[key]!r} (now {value!r})" for key, value in recorded.items()
@@ -302,7 +331,7 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
         spec = get_task(plan.task)
         _check_existing_histories(plan, root)
         if demonstrator is None:
-            load_demonstrator(spec.name)  # fail before writing anything for a task without one
+            load_demonstrator(spec.name, behaviour=plan.behaviour)  # fail before writing anything for a task without one
         # The noise-free tail fraction tells expert distillation (a training ablation) which rows to keep.
         write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
                             domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale,

@@ -21,11 +21,28 @@ class Demonstrator(Protocol):
         ...
 
 
-def load_demonstrator(task: str, weights: Path | None = None) -> Demonstrator:
+BEHAVIOURS = ("expert", "posterior-sampling")
+"""How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
+rewards (`vintix.demonstrators.posterior`)."""
+
+
+def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert") -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
-    tasks that have none."""
+    tasks that have none. `behaviour="posterior-sampling"` wraps a scripted expert of a hidden-goal task
+    (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards."""
     spec = get_task(task)
+    if behaviour not in BEHAVIOURS:
+        raise VintixError(f"unknown demonstrator behaviour {behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
+    if behaviour == "posterior-sampling":
+        from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator
+
+        if spec.domain not in DEFAULT_SETTINGS or weights is not None:
+            raise VintixError(f"{spec.name!r}: posterior-sampling needs a scripted expert that can aim at a given goal "
+                              f"(tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.domain} task"
+                              f"{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
+        expert = load_demonstrator(spec.name)
+        return PosteriorSamplingDemonstrator(expert, DEFAULT_SETTINGS[spec.domain])  # type: ignore[arg-type]
     if weights is not None and spec.domain in ("metaworld", "bidexhands"):
         raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "
                           "are scripted and Bi-DexHands' need IsaacGym; leave the weights out")
@@ -33,6 +50,10 @@ def load_demonstrator(task: str, weights: Path | None = None) -> Demonstrator:
         from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
 
         return ScriptedMetaWorldDemonstrator(spec.name)
+    if spec.domain == "toy":
+        from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
+
+        return ScriptedPointGoalDemonstrator()
     if spec.domain == "bidexhands":
         raise VintixError(f"no demonstrator for Bi-DexHands task {spec.name!r}: its envs need IsaacGym")
     from vintix.demonstrators.trained import TrainedDemonstrator

@@ -1,7 +1,9 @@
-"""Meta-World's scripted experts (`metaworld.policies`), one per task.
+"""Scripted experts: Meta-World's (`metaworld.policies`, one per task) and the toy task's.
 
-They read the goal from the last 3 observation entries, which the ML45 setting hides; the env
-gives the true goal to demonstrators through `expert_observation`. The model never sees it.
+Meta-World's read the goal from the last 3 observation entries, which the ML45 setting hides; the env
+gives the true goal to demonstrators through `expert_observation`. The model never sees it. Both can
+also aim at a goal they are given (`act_toward`), which is how a demonstrator that does not know the
+goal plays its current guess (`vintix.demonstrators.posterior`).
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ import gymnasium as gym
 import numpy as np
 from metaworld.policies import ENV_POLICY_MAP
 
+from vintix.tasks import toy
+
 
 class ScriptedMetaWorldDemonstrator:
     """The scripted policy of one Meta-World task."""
@@ -20,7 +24,20 @@ class ScriptedMetaWorldDemonstrator:
         self.policy = ENV_POLICY_MAP[task]()
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
-        return np.stack([
-            self.policy.get_action(env.unwrapped.expert_observation(obs))  # type: ignore[attr-defined]
-            for obs, env in zip(observations, envs)
-        ])
+        return self.act_toward(observations, np.stack([env.unwrapped.true_goal for env in envs]))  # type: ignore[attr-defined]
+
+    def act_toward(self, observations: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """What the policy does if the hidden goal is `goals` ``[n_envs, 3]`` (one guess per env)."""
+        full = np.array(observations, dtype=np.float64, copy=True)
+        full[:, -3:] = goals
+        return np.stack([self.policy.get_action(o) for o in full])
+
+
+class ScriptedPointGoalDemonstrator:
+    """The toy task's expert (`vintix.tasks.toy`): straight at the goal."""
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        return self.act_toward(observations, np.stack([env.unwrapped.true_goal for env in envs]))  # type: ignore[attr-defined]
+
+    def act_toward(self, observations: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        return toy.action_toward(np.asarray(observations, dtype=np.float64), goals)

@@ -42,7 +42,7 @@ class RandomPolicyResult:
     def paper_z(self) -> float | None:
         """How many of the paper's random-score standard deviations our mean lies from the paper's."""
         paper = get_task(self.task).paper_random
-        if not paper.std:
+        if paper is None or not paper.std:
             return None
         return (self.mean - paper.mean) / paper.std
 

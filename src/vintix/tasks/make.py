@@ -100,11 +100,18 @@ def _make_bidexhands(spec: TaskSpec, seed: int | None) -> gym.Env:
     )
 
 
+def _make_toy(spec: TaskSpec, seed: int | None) -> gym.Env:
+    from vintix.tasks.toy import PointGoalEnv
+
+    return gym.wrappers.TimeLimit(PointGoalEnv(seed), spec.episode_length)
+
+
 _FACTORIES: dict[str, Callable[..., gym.Env]] = {
     "mujoco": _make_mujoco,
     "metaworld": _make_metaworld,
     "industrial_benchmark": _make_industrial_benchmark,
     "bidexhands": _make_bidexhands,
+    "toy": _make_toy,
 }
 
 

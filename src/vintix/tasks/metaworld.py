@@ -78,6 +78,29 @@ class MetaWorldTaskEnv(gym.Env):
         obs, reward, terminated, truncated, info = self._sawyer.step(action)
         return obs, float(reward), terminated, truncated, info
 
+    # What a goal-inferring demonstrator may use (never a model): the prior over goals, the reward the
+    # current state would earn under other goals, and the true goal.
+
+    def goal_prior(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """`count` goals drawn uniformly from the task's goal space (for tasks whose hidden goal is drawn
+        at random, e.g. reach-v3 and push-v3, the box the env draws it from)."""
+        space = self._sawyer.goal_space
+        return rng.uniform(space.low, space.high, size=(count, len(space.low)))
+
+    def rewards_under_goals(self, goals: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """The reward the last step (`action`, into the current state) would have earned had the hidden
+        goal been each of `goals` ``[n, 3]``: the task's own reward function, with its goal swapped."""
+        sawyer, true_goal = self._sawyer, self._sawyer._target_pos
+        obs = sawyer._last_stable_obs
+        try:
+            rewards = []
+            for goal in goals:
+                sawyer._target_pos = goal
+                rewards.append(sawyer.compute_reward(action, obs)[0])
+        finally:
+            sawyer._target_pos = true_goal
+        return np.asarray(rewards, dtype=np.float64)
+
     @property
     def true_goal(self) -> np.ndarray:
         """The hidden target position. For scripted demonstrators only."""

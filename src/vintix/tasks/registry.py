@@ -1,4 +1,4 @@
-"""The registry of every task of the Vintix paper (102 tasks in 4 domains).
+"""The registry of every task of the Vintix paper (102 tasks in 4 domains), plus one toy task.
 
 The table ships inside the package (`paper_tasks.csv`, built by `scripts/build_task_table.py` from
 the paper's appendix tables) so nothing outside the package is read at run time.
@@ -9,6 +9,7 @@ accepted as aliases of the `-v5` task (Pusher too, although gymnasium's own Push
 on mujoco 3: the alias makes the v5 env). Meta-World tasks use metaworld 3.x's `-v3` ids; the
 paper's bare names and `-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1` (alias `IB-p-<p>`);
 Bi-DexHands uses the dataset's `Hand-*` names (alias: the score table's `shadowhand*`).
+The toy domain's `point-goal-v1` (`vintix.tasks.toy`) is not a paper task and has no published scores.
 """
 
 from __future__ import annotations
@@ -22,9 +23,9 @@ from typing import Literal
 
 from vintix.errors import UnknownTaskError
 
-Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands"]
+Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy"]
 Split = Literal["train", "test"]
-DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands")
+DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy")
 
 PAPER_PROVENANCE = (
     "paper: Vintix (ICML 2025) appendix 'Task-Level Performance'; MuJoCo -v4 names with v5 dims, "
@@ -56,9 +57,10 @@ class TaskSpec:
     """Multiplies rewards before they enter the model."""
     split: Split
     aliases: tuple[str, ...]
-    paper_random: ReferenceScore
-    paper_expert: ReferenceScore
-    paper_vintix_normalized: ReferenceScore
+    paper_random: ReferenceScore | None
+    """None for a task that is not the paper's (no published scores)"""
+    paper_expert: ReferenceScore | None
+    paper_vintix_normalized: ReferenceScore | None
     paper_history_length: int
     """Steps per learning history in the paper's dataset."""
     paper_histories: int
@@ -91,10 +93,20 @@ def _spec_from_row(row: dict[str, str]) -> TaskSpec:
     )
 
 
+def _toy_tasks() -> list[TaskSpec]:
+    from vintix.tasks import toy
+
+    return [TaskSpec(name="point-goal-v1", domain="toy", group="point-goal", obs_dim=1, act_dim=1,
+                     episode_length=toy.EPISODE_LENGTH, reward_scale=1.0, split="train", aliases=("point-goal",),
+                     paper_random=None, paper_expert=None, paper_vintix_normalized=None, paper_history_length=0,
+                     paper_histories=0)]
+
+
 @cache
 def _tasks() -> dict[str, TaskSpec]:
     table = resources.files("vintix.tasks").joinpath("paper_tasks.csv").read_text()
-    return {spec.name: spec for spec in map(_spec_from_row, csv.DictReader(table.splitlines()))}
+    paper = list(map(_spec_from_row, csv.DictReader(table.splitlines())))
+    return {spec.name: spec for spec in paper + _toy_tasks()}
 
 
 @cache

@@ -1,0 +1,126 @@
+"""The goal-blind baseline: how well a hidden-goal task goes for an expert that does not know the goal.
+
+The scripted expert aimed at the task's mean goal (the average of the hidden goals its envs draw)
+plays one episode per seed; beside it, the same expert aimed at the true goal. A task whose
+goal-blind success is near the true-goal success does not need its hidden goal (Meta-World's
+button-press: the goal follows from the button's observed position), so improvement over shots there
+cannot show that a model reads rewards; a task whose goal-blind success is low can. The table
+`goal_blind.csv` beside the reference scores holds every Meta-World task, measured by `vintix
+demonstrator goal-blind`.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import io
+from dataclasses import asdict, dataclass, fields
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from vintix.atomic import atomic_write_text
+from vintix.demonstrators.base import load_demonstrator
+from vintix.demonstrators.posterior import GoalConditionedExpert
+from vintix.errors import VintixError
+from vintix.tasks import get_task, make_env
+
+MEAN_GOAL_DRAWS = 50
+MEAN_GOAL_FIRST_SEED = 1_000_000
+"""Seeds of the envs whose goals are averaged into the mean goal: far from any evaluation seed."""
+
+
+@dataclass(frozen=True)
+class GoalBlindResult:
+    """One task's success and return with the true goal and with the mean goal, one episode per seed."""
+
+    task: str
+    seeds: int
+    first_seed: int
+    true_goal_success: float
+    goal_blind_success: float
+    true_goal_return: float
+    goal_blind_return: float
+    measured_on: str
+    command: str
+
+    @property
+    def hidden_information(self) -> float:
+        """How much success the hidden goal decides: true-goal success minus goal-blind success."""
+        return self.true_goal_success - self.goal_blind_success
+
+
+def goal_blind_path() -> Path:
+    """The package's goal-blind table."""
+    return Path(str(resources.files("vintix.demonstrators").joinpath("goal_blind.csv")))
+
+
+def mean_goal(task: str) -> np.ndarray:
+    """The average hidden goal of `task` over `MEAN_GOAL_DRAWS` env seeds no evaluation uses."""
+    env = make_env(task)
+    goals = []
+    for seed in range(MEAN_GOAL_FIRST_SEED, MEAN_GOAL_FIRST_SEED + MEAN_GOAL_DRAWS):
+        env.reset(seed=seed)  # draws the goal a new env with this seed would
+        goals.append(env.unwrapped.true_goal)  # type: ignore[attr-defined]
+    env.close()
+    return np.mean(goals, axis=0)
+
+
+def play_aimed(task: str, expert: GoalConditionedExpert, seeds: range, goal: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Success (1 if reached at any step) and return of one episode per seed, the expert aimed at
+    `goal` in every env, or at each env's true goal when `goal` is None."""
+    envs = [make_env(task, seed=seed) for seed in seeds]
+    observations = np.stack([env.reset()[0] for env in envs])
+    goals = np.stack([env.unwrapped.true_goal if goal is None else goal for env in envs])  # type: ignore[attr-defined]
+    success, returns = np.zeros(len(envs)), np.zeros(len(envs))
+    running = np.ones(len(envs), dtype=bool)
+    while running.any():
+        active = np.flatnonzero(running)
+        actions = expert.act_toward(observations[active], goals[active])
+        for i, action in zip(active, actions):
+            low, high = envs[i].action_space.low, envs[i].action_space.high
+            observations[i], reward, terminated, truncated, info = envs[i].step(np.clip(action, low, high))
+            returns[i] += float(reward)
+            success[i] = max(success[i], float(info.get("success", 0.0)))
+            running[i] = not (terminated or truncated)
+    for env in envs:
+        env.close()
+    return success, returns
+
+
+def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, command: str = "") -> GoalBlindResult:
+    """Measure `task`'s goal-blind baseline on env seeds ``first_seed ..``, beside the true goal's."""
+    spec = get_task(task)
+    expert = load_demonstrator(spec.name)
+    if not hasattr(expert, "act_toward"):
+        raise VintixError(f"{spec.name!r} has no hidden goal a scripted expert can be aimed at (Meta-World and toy "
+                          "tasks do); a goal-blind baseline needs one")
+    runs = range(first_seed, first_seed + seeds)
+    true_success, true_returns = play_aimed(spec.name, expert, runs, None)  # type: ignore[arg-type]
+    blind_success, blind_returns = play_aimed(spec.name, expert, runs, mean_goal(spec.name))  # type: ignore[arg-type]
+    return GoalBlindResult(spec.name, seeds, first_seed, float(true_success.mean()), float(blind_success.mean()),
+                           round(float(true_returns.mean()), 3), round(float(blind_returns.mean()), 3),
+                           datetime.date.today().isoformat(), command)
+
+
+def read_goal_blind(path: Path | None = None) -> dict[str, GoalBlindResult]:
+    """The goal-blind table by task (empty if it does not exist)."""
+    path = path or goal_blind_path()
+    if not path.is_file():
+        return {}
+    types = {f.name: f.type for f in fields(GoalBlindResult)}
+    cast = {"int": int, "float": float, "str": str}
+    return {row["task"]: GoalBlindResult(**{k: cast[str(types[k])](v) for k, v in row.items()})
+            for row in csv.DictReader(path.read_text().splitlines())}
+
+
+def write_goal_blind(results: list[GoalBlindResult], path: Path) -> Path:
+    """Add `results` to the table at `path` (replacing rows of the same tasks), atomically."""
+    rows = read_goal_blind(path) | {r.task: r for r in results}
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=[f.name for f in fields(GoalBlindResult)], lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(asdict(rows[task]) for task in sorted(rows))
+    atomic_write_text(path, buffer.getvalue())
+    return path

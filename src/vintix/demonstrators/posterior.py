@@ -1,0 +1,149 @@
+"""A demonstrator that does not see the hidden goal: it infers it from the rewards it earns.
+
+A goal-aware expert's noisy actions leak the goal: a model trained on its histories can copy the
+goal out of the previous actions and never needs a reward, and at test time its own actions carry
+no such information (DESIGN §6). This demonstrator knows only what the rewards so far revealed.
+
+Posterior sampling over goals (Thompson sampling, as in PSRL): each env keeps candidate goals drawn
+from the task's goal prior, each weighted by how well it explains every reward seen so far (the
+task's own reward function with that goal swapped in, `rewards_under_goals`, against the reward
+observed, with a Gaussian tolerance since no candidate is exactly the true goal). At the start of
+every episode it draws one candidate from that posterior and plays the task's expert aimed at it for
+the whole episode. Between episodes the candidates are resampled by weight and jittered a little
+(a regularized particle filter), so they gather around the goal and can end nearer to it than any
+of the first draws: Meta-World's reach needs the hand within 5 cm of the goal, and 256 draws from
+its goal box leave the nearest about 1.5 cm away. So the first episode of a history is a guess from the prior, and later ones
+home in as fast as the rewards allow. What it proposes as the training target
+(`demonstrator_action`) is the goal-aware expert's action: the action that is right given the
+true goal, which a model can only match by inferring the goal from the context's rewards.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import gymnasium as gym
+import numpy as np
+
+from vintix.demonstrators.base import Demonstrator
+
+
+class GoalConditionedExpert(Demonstrator, Protocol):
+    """An expert that can aim at a goal it is given instead of the env's true one."""
+
+    def act_toward(self, observations: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """Actions [n_envs, act_dim] if the hidden goal of env i were ``goals[i]``."""
+        ...
+
+
+@runtime_checkable
+class GoalInferringDemonstrator(Demonstrator, Protocol):
+    """A demonstrator that learns within a history: the collector tells it what each step earned."""
+
+    def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
+        """Forget everything: `envs` start their histories (each with its own random stream)."""
+        ...
+
+    def observe(self, env_index: int, env: gym.Env, action: np.ndarray, reward: float, episode_end: bool) -> None:
+        """Env `env_index` took `action` and earned `reward` (called right after its step, before any reset)."""
+        ...
+
+    def expert_act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        """The goal-aware expert's actions: the training target the collector records."""
+        ...
+
+
+@dataclass
+class PosteriorSettings:
+    """How the goal posterior is kept."""
+
+    candidates: int = 256
+    """candidate goals per env, drawn from the task's goal prior"""
+    reward_tolerance: float = 0.5
+    """std of the Gaussian likelihood of an observed reward given a candidate's reward: the slack for
+    candidates that are near, not at, the true goal (in the env's reward units)"""
+    update_every: int = 5
+    """steps between likelihood updates within an episode (each costs `candidates` reward calls);
+    the last step of an episode always updates"""
+    jitter: float = 0.3
+    """std of the jitter after resampling, as a fraction of the candidates' spread (per dimension)"""
+    min_jitter: float = 0.05
+    """least jitter, as a fraction of the prior's spread: a posterior collapsed onto one candidate
+    still moves, so it keeps searching around it"""
+
+
+# Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1].
+DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(), "toy": PosteriorSettings(reward_tolerance=0.05, update_every=1)}
+
+
+class _GoalPosterior:
+    """One env's candidate goals, their log-weights, and the goal it plays this episode."""
+
+    def __init__(self, candidates: np.ndarray, rng: np.random.Generator, settings: PosteriorSettings) -> None:
+        self.candidates, self.rng, self.settings = candidates, rng, settings
+        self.log_weights = np.zeros(len(candidates))
+        self.low, self.high = candidates.min(axis=0), candidates.max(axis=0)
+        self.min_jitter = settings.min_jitter * candidates.std(axis=0)
+        self.steps = 0
+        self.guess = self._draw()
+
+    def update(self, candidate_rewards: np.ndarray, reward: float) -> None:
+        self.log_weights -= 0.5 * ((candidate_rewards - reward) / self.settings.reward_tolerance) ** 2
+        self.log_weights -= self.log_weights.max()  # keep the best candidate at weight 1 (no underflow)
+
+    def _weights(self) -> np.ndarray:
+        weights = np.exp(self.log_weights)
+        return weights / weights.sum()
+
+    def _draw(self) -> np.ndarray:
+        return self.candidates[self.rng.choice(len(self.candidates), p=self._weights())]
+
+    def next_episode(self) -> None:
+        """Draw the goal of the next episode, after resampling the candidates by weight and jittering
+        them if the weights have degenerated (effective sample size below half)."""
+        weights = self._weights()
+        if 1.0 / np.sum(weights**2) < len(weights) / 2:
+            self._resample_and_jitter()
+        self.guess = self._draw()
+        self.steps = 0
+
+    def _resample_and_jitter(self) -> None:
+        chosen = self.candidates[self.rng.choice(len(self.candidates), size=len(self.candidates), p=self._weights())]
+        scale = np.maximum(self.settings.jitter * chosen.std(axis=0), self.min_jitter)
+        self.candidates = np.clip(chosen + self.rng.normal(size=chosen.shape) * scale, self.low, self.high)
+        self.log_weights = np.zeros(len(self.candidates))
+
+
+class PosteriorSamplingDemonstrator:
+    """Plays a goal-conditioned expert aimed at a goal drawn, each episode, from the posterior over
+    goals given the rewards seen so far (see the module docstring)."""
+
+    def __init__(self, expert: GoalConditionedExpert, settings: PosteriorSettings) -> None:
+        self.expert = expert
+        self.settings = settings
+        self._posteriors: list[_GoalPosterior] = []
+
+    def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
+        self._posteriors = [
+            _GoalPosterior(env.unwrapped.goal_prior(rng, self.settings.candidates), rng, self.settings)  # type: ignore[attr-defined]
+            for env, rng in zip(envs, rngs)
+        ]
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        if len(self._posteriors) != len(envs):
+            raise RuntimeError("PosteriorSamplingDemonstrator.begin(envs, rngs) must come before act")
+        return self.expert.act_toward(observations, np.stack([p.guess for p in self._posteriors]))
+
+    def expert_act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        return self.expert.act(observations, envs)
+
+    def observe(self, env_index: int, env: gym.Env, action: np.ndarray, reward: float, episode_end: bool) -> None:
+        posterior = self._posteriors[env_index]
+        posterior.steps += 1
+        if episode_end or posterior.steps % self.settings.update_every == 0:
+            rewards = env.unwrapped.rewards_under_goals(posterior.candidates, action)  # type: ignore[attr-defined]
+            posterior.update(rewards, reward)
+        if episode_end:
+            posterior.next_episode()

@@ -1,0 +1,109 @@
+"""Histories whose improvement is caused by rewards: the toy hidden-goal task, the demonstrator that
+infers the goal from rewards (posterior sampling), its collection, and the goal-blind baseline."""
+
+import numpy as np
+import pytest
+
+from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
+from vintix.data import LearningHistory
+from vintix.demonstrators import PosteriorSamplingDemonstrator, load_demonstrator
+from vintix.demonstrators.goal_blind import goal_blind_baseline, read_goal_blind
+from vintix.errors import VintixError
+from vintix.tasks import make_env
+from vintix.tasks.toy import EPISODE_LENGTH, START, SUCCESS_RADIUS
+
+NO_NOISE = NoiseSchedule(noise_free_fraction=1.0)
+
+
+def play_episodes(task: str, seeds: range, episodes: int) -> np.ndarray:
+    """Success per (env, episode) of the posterior-sampling demonstrator, one history per env seed."""
+    demonstrator = load_demonstrator(task, behaviour="posterior-sampling")
+    envs = [make_env(task, seed=seed) for seed in seeds]
+    demonstrator.begin(envs, [np.random.default_rng(seed) for seed in seeds])
+    observations = np.stack([env.reset()[0] for env in envs])
+    success = np.zeros((len(envs), episodes))
+    for episode in range(episodes):
+        done = np.zeros(len(envs), dtype=bool)
+        while not done.all():
+            actions = demonstrator.act(observations, envs)
+            for i, env in enumerate(envs):
+                observations[i], reward, terminated, truncated, info = env.step(actions[i])
+                success[i, episode] = max(success[i, episode], info["success"])
+                demonstrator.observe(i, env, actions[i], reward, terminated or truncated)
+                done[i] = terminated or truncated
+        observations = np.stack([env.reset()[0] for env in envs])
+    return success
+
+
+def test_toy_task_hides_its_goal_and_rewards_distance_to_it():
+    env = make_env("point-goal-v1", seed=3)
+    obs, _ = env.reset()
+    goal = env.unwrapped.true_goal
+    assert np.allclose(obs, START)  # the observation is the point, never the goal
+    for _ in range(EPISODE_LENGTH):
+        obs, reward, _, truncated, info = env.step(np.array([1.0]))
+        assert reward == pytest.approx(env.unwrapped.rewards_under_goals(goal[None])[0])
+        assert reward < env.unwrapped.rewards_under_goals(obs[None].astype(np.float64))[0]  # best where the point is
+    assert truncated and info["success"] == float(np.linalg.norm(obs - goal) < SUCCESS_RADIUS)
+    assert np.allclose(make_env("point-goal-v1", seed=3).unwrapped.true_goal, goal)
+    assert not np.allclose(make_env("point-goal-v1", seed=4).unwrapped.true_goal, goal)
+
+
+def test_posterior_sampling_starts_blind_and_finds_the_goal_from_rewards():
+    success = play_episodes("point-goal-v1", range(100, 140), episodes=6)
+    assert success[:, 0].mean() <= 0.4  # the first episode aims at a goal drawn from the prior
+    assert success[:, -2:].mean() >= 0.7
+
+
+def test_metaworld_rewards_under_the_true_goal_are_the_envs_rewards():
+    env = make_env("reach-v3", seed=5)
+    env.reset()
+    goal = env.unwrapped.true_goal
+    for _ in range(5):
+        action = env.action_space.sample()
+        _, reward, *_ = env.step(action)
+        under = env.unwrapped.rewards_under_goals(np.stack([goal, goal + 0.1]), action)
+        assert under[0] == pytest.approx(reward) and under[1] != pytest.approx(reward)
+    assert np.array_equal(env.unwrapped.true_goal, goal)  # the swap is undone
+
+
+def test_collected_posterior_sampling_histories_record_the_goal_aware_expert_action(tmp_path):
+    plan = CollectionPlan("point-goal-v1", histories=2, steps=60, schedule=NO_NOISE, envs_per_batch=2,
+                          behaviour="posterior-sampling")
+    summaries = collect(plan, tmp_path)
+    with LearningHistory(summaries[0].path) as history:
+        rows = history.read(0, 60, demonstrator_action=True)
+        assert history.attrs["behaviour"] == "posterior-sampling"
+    env = make_env("point-goal-v1", seed=int(history.attrs["env_seed"]))
+    expert = load_demonstrator("point-goal-v1").act_toward(rows["observation"], env.unwrapped.true_goal[None])
+    assert np.allclose(rows["demonstrator_action"], expert, atol=1e-6)  # the target: aimed at the true goal
+    assert not np.allclose(rows["action"][:10], rows["demonstrator_action"][:10])  # the behaviour: a guess
+    again = collect(plan, tmp_path / "again")
+    with LearningHistory(again[0].path) as first_again:
+        assert np.array_equal(first_again.read(0, 60)["action"], rows["action"])  # reproducible
+    with pytest.raises(CollectionSettingsError, match="behaviour"):
+        collect(CollectionPlan("point-goal-v1", histories=2, steps=60, schedule=NO_NOISE, envs_per_batch=2), tmp_path)
+
+
+def test_posterior_sampling_needs_a_task_whose_expert_can_aim_at_a_goal():
+    with pytest.raises(VintixError, match="posterior-sampling"):
+        load_demonstrator("industrial-benchmark-30-v1", behaviour="posterior-sampling")
+    with pytest.raises(CollectionError, match="unknown behaviour"):
+        CollectionPlan("reach-v3", histories=1, steps=10, behaviour="psrl")
+    with pytest.raises(CollectionError, match="pilot_steps"):
+        CollectionPlan("reach-v3", histories=1, steps=10, behaviour="posterior-sampling",
+                       schedule=NoiseSchedule(pilot_steps=100))
+    assert isinstance(load_demonstrator("reach-v3", behaviour="posterior-sampling"), PosteriorSamplingDemonstrator)
+
+
+def test_goal_blind_baseline_separates_tasks_that_hide_their_goal():
+    toy = goal_blind_baseline("point-goal-v1", seeds=20)
+    assert toy.true_goal_success == 1.0 and toy.goal_blind_success <= 0.4
+    button = goal_blind_baseline("button-press-v3", seeds=3)  # the goal follows from the observed button
+    assert button.hidden_information == 0.0
+
+
+def test_the_shipped_goal_blind_table_covers_every_metaworld_task():
+    table = read_goal_blind()
+    assert len([t for t in table if t.endswith("-v3")]) == 50
+    assert table["reach-v3"].goal_blind_success <= 0.4 and table["reach-v3"].true_goal_success >= 0.9
