@@ -153,3 +153,17 @@ def test_misuse_of_the_agent_is_a_named_error():
                                               f"{window}-step window"):
         agent.prompt([np.zeros((window + 1, 39))], [np.zeros((window + 1, 4))], [np.zeros(window + 1)],
                      [np.arange(window + 1)])
+
+
+def test_a_gaussian_policy_samples_reproducibly_from_its_seed():
+    model = tiny_model(policy="gaussian")
+    inputs = random_inputs(model, "metaworld", 1, steps=10)
+
+    def run(seed: int) -> np.ndarray:
+        agent = Agent(model, seed=seed)
+        agent.reset(["reach-v3"], [UNBOUNDED[4]])
+        return play(agent, [inputs], 10)[0]
+
+    first = run(0)
+    np.testing.assert_array_equal(first, run(0))  # reset restarts the draws
+    assert not np.allclose(first, run(1))

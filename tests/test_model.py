@@ -234,3 +234,31 @@ def test_paper_preset_has_the_papers_parameter_count():
         model = Vintix(preset("paper"), PAPER_GROUPS, [])
     assert model.config.d_model == 1024
     assert abs(count_parameters(model) / 332_100_768 - 1) < 0.05
+
+
+# --- reward encoder and policy ------------------------------------------------------------------
+
+
+def test_the_mlp_reward_encoder_tells_rewards_apart_where_the_linear_one_can_go_flat():
+    model = make_model(reward_encoder="mlp", rew_emb_dim=8, obs_emb_dim=10, act_emb_dim=10)
+    encoder = model.encoders["A"].rew
+    codes = encoder(torch.linspace(-1.5, 1.5, 7).unsqueeze(-1))
+    assert codes.shape == (7, 8)
+    distinct = torch.cdist(codes, codes)[~torch.eye(7, dtype=torch.bool)]
+    assert distinct.min() > 1e-3  # every unit-scale reward gets its own code
+
+
+def test_a_gaussian_policy_predicts_a_mean_and_a_bounded_log_std():
+    model = make_model(policy="gaussian")
+    batch = make_batch("B", "b0", model)
+    h = model.backbone(model.embed(**batch))
+    mean, log_std = model.action_distribution("B", h)
+    assert mean.shape == log_std.shape == (2, 12, 3)
+    assert torch.equal(model.head("B", h), mean) and torch.equal(model(**batch), mean)
+    assert make_model().action_distribution("B", h)[1] is None  # deterministic: the paper's MSE head
+
+
+@pytest.mark.parametrize("field, value", [("policy", "stochastic"), ("reward_encoder", "fourier")])
+def test_unknown_policy_or_reward_encoder_is_a_named_error(field, value):
+    with pytest.raises(ValueError, match=field):
+        tiny_config(**{field: value})

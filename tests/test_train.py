@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 import re
 import shutil
 
 import h5py
+import numpy as np
 import pytest
 import torch
 from safetensors.torch import load_file
@@ -27,6 +29,7 @@ from vintix.train import (
     build_optimizer,
     collate_windows,
     learning_rate,
+    load_config,
 )
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
@@ -36,6 +39,7 @@ from vintix.train.checkpoint import (
     prune_checkpoints,
     read_training_state,
 )
+from vintix.train.trainer import Selection
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -185,7 +189,8 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
 
     def scorer(model, tasks):
         seen.append((tasks, model.training))
-        return next(scores)
+        score = next(scores)
+        return Selection(score, reward_use_gap=score / 2)
 
     config = make_config(metaworld_data, out, max_steps=6, select_every=2, log_every=2, checkpoint_every=2)
     Trainer(config, scorer=scorer).run()
@@ -193,12 +198,23 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
     best = load_pretrained(best_checkpoint_dir(out))
     assert best.task_norms and read_metadata(best_checkpoint_dir(out))["extra"]["step"] == 4
     assert logged(out, "in_context_score") == [0.2, 0.7, 0.4]
+    assert logged(out, "reward_use_gap") == [0.1, 0.35, 0.2]
     assert model_directory(out) == best_checkpoint_dir(out)  # a run folder means the model it recommends
     assert latest_checkpoint(out).name == "step-00000006"  # resume still starts from the newest step
 
+    # A log written before reward_use_gap existed: resuming keeps its rows, the new column empty in them.
+    with (out / "log.csv").open() as f:
+        old = [{k: v for k, v in row.items() if k != "reward_use_gap"} for row in csv.DictReader(f)]
+    with (out / "log.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, list(old[0]))
+        writer.writeheader()
+        writer.writerows(old)
     Trainer(dataclasses.replace(config, max_steps=10), scorer=scorer).run()  # resumed: 0.5 < 0.7 stays out
-    assert read_metadata(best_checkpoint_dir(out))["extra"]["step"] == 10
-    assert read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"] == 0.9
+    extra = read_metadata(best_checkpoint_dir(out))["extra"]
+    assert extra["step"] == 10 and extra["in_context_score"] == 0.9 and extra["reward_use_gap"] == 0.45
+    assert logged(out, "in_context_score") == [0.2, 0.7, 0.4, 0.5, 0.9]
+    with (out / "log.csv").open() as f:
+        assert [row["reward_use_gap"] for row in csv.DictReader(f)] == ["", "", "", "0.25", "0.45"]
 
 
 @pytest.mark.parametrize(("setting", "message"), [
@@ -210,6 +226,7 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
     ("window_len=0", "must be >= 1: window_len=0"),
     ("model_overrides={n_heads: 0}", "model_overrides: sizes must be >= 1 .*n_heads=0"),
     ("model_overrides={mlp_dim: big}", "ModelConfig.mlp_dim must be int, got 'big'"),
+    ("select_metric=wins", "select_metric must be one of 'score', 'success', got 'wins'"),
 ])
 def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_path, setting, message):
     result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),
@@ -249,6 +266,10 @@ def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path)
     score = logged(out, "in_context_score")[0]
     assert score == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"], abs=1e-6)
     assert -2.0 < score < 2.0
+    # The same shots with zero rewards fed back ran too (select_reward_gap is on by default).
+    gap = logged(out, "reward_use_gap")[0]
+    assert math.isfinite(gap) and gap == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["reward_use_gap"],
+                                                       abs=1e-6)
 
 
 def diverge(model, step):
@@ -357,3 +378,23 @@ def test_pruning_drops_checkpoints_past_the_current_step(tmp_path):
         (directory / "trainer.json").write_text("{}")
     prune_checkpoints(tmp_path, keep=2, step=3)
     assert [p.name for p in list_checkpoints(tmp_path)] == ["step-00000002", "step-00000003"]
+
+
+def test_normalized_rewards_reach_the_model_at_unit_scale_and_a_gaussian_policy_trains(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    trainer = Trainer(make_config(metaworld_data, out, max_steps=30, lr=1e-3, warmup_steps=5, normalize_rewards=True,
+                                  model_overrides={**TEST_MODEL, "policy": "gaussian", "reward_encoder": "mlp"}))
+    rewards = np.concatenate([h.history.read(0, h.history.num_steps)["reward"]
+                              for task in trainer.data.tasks for h in task.histories if task.name == "reach-v3"])
+    scale = float(trainer.model.reward_scale[trainer.model.task_index("reach-v3")])
+    assert scale == pytest.approx(1 / rewards.std(), rel=1e-4)  # the checkpoint carries it to the agent
+    trainer.run()
+    losses = logged(out)
+    assert sum(losses[-5:]) < sum(losses[:5])  # a likelihood: it may go below 0
+
+
+def test_shipped_training_configs_load_by_name_and_an_unknown_one_lists_them():
+    config = load_config("point-goal", {"data": "d", "out": "o"})
+    assert config.normalize_rewards and config.expert_distillation and config.model_config().reward_encoder == "mlp"
+    with pytest.raises(ConfigError, match="icrl-suite"):
+        load_config("no-such-config")

@@ -180,8 +180,12 @@ class Agent:
     Envs of a batch may belong to different groups; they share one backbone forward per step.
     """
 
-    def __init__(self, model: Vintix) -> None:
+    def __init__(self, model: Vintix, seed: int = 0) -> None:
+        """`seed`: the draws of a gaussian-policy model's actions (`ModelConfig.policy`), restarted at every
+        `reset`, so a run is reproducible; a deterministic model draws nothing."""
         self.model = model
+        self.seed = seed
+        self._generator = torch.Generator(self.device)
         self.tasks: list[AgentTask] = []
         self.cache: KVCache | None = None
         self._groups: dict[str, _GroupBatch] = {}
@@ -223,6 +227,7 @@ class Agent:
             g: torch.zeros(len(b.envs), self.model.groups[g].act_dim, device=self.device) for g, b in self._groups.items()
         }
         self.cache = KVCache.for_model(self.model, len(self.tasks))
+        self._generator.manual_seed(self.seed)
 
     def _regroup(self) -> None:
         """Per-group views of the batch (`self.tasks`), built once per reset or keep, not per step."""
@@ -306,7 +311,10 @@ class Agent:
         hidden = cached_backbone(self.model, tokens, self.cache)[:, -1]
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, batch in self._groups.items():
-            action = torch.clamp(self.model.head(group, hidden[batch.envs]), batch.action_low, batch.action_high)
+            mean, log_std = self.model.action_distribution(group, hidden[batch.envs])
+            if log_std is not None:  # a gaussian policy acts on a draw
+                mean = mean + log_std.exp() * torch.randn(mean.shape, generator=self._generator, device=mean.device)
+            action = torch.clamp(mean, batch.action_low, batch.action_high)
             finite = torch.isfinite(action).all(dim=1)  # clamp passes NaN through
             if not finite.all():
                 env = int(batch.envs[~finite][0])

@@ -28,6 +28,10 @@ from vintix.fields import check_field_types
 
 
 _ACTIVATIONS = {"gelu": nn.GELU, "leaky_relu": nn.LeakyReLU}
+REWARD_ENCODERS = ("linear", "mlp")
+POLICIES = ("deterministic", "gaussian")
+LOG_STD_RANGE = (-5.0, 1.0)
+"""Bounds of a gaussian policy's log-std: a likelihood can otherwise push the std to 0 on exact targets."""
 
 
 class ModelConfigError(VintixError, ValueError):
@@ -63,6 +67,14 @@ class ModelConfig:
     """'AD without rewards' ablation: the reward embedding is always the padding vector"""
     activation: str = "gelu"
     """activation in encoders and heads: 'gelu', or 'leaky_relu' as in the official release"""
+    policy: str = "deterministic"
+    """'deterministic': the head predicts the action, trained by MSE (the paper); 'gaussian': it predicts
+    a mean and a log-std per action channel, trained by Gaussian likelihood, and the agent samples. A
+    sampling model can explore as a posterior-sampling demonstrator does, where the mean action of its
+    histories stands still (a hidden goal equally likely on either side)"""
+    reward_encoder: str = "linear"
+    """'linear': Linear(1, rew_emb_dim) + activation, as in the official release; 'mlp': two layers, the
+    first with biases spread over the reward range, so each unit bends at another reward value"""
 
     @property
     def d_model(self) -> int:
@@ -86,6 +98,10 @@ class ModelConfig:
             )
         if self.activation not in _ACTIVATIONS:
             raise ModelConfigError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}")
+        if self.policy not in POLICIES:
+            raise ModelConfigError(f"policy must be one of {list(POLICIES)}, got {self.policy!r}")
+        if self.reward_encoder not in REWARD_ENCODERS:
+            raise ModelConfigError(f"reward_encoder must be one of {list(REWARD_ENCODERS)}, got {self.reward_encoder!r}")
 
 # tiny: ~0.8M backbone parameters, the size that learned in context on Meta-World within 15 CPU
 #   minutes (DESIGN §6); a 1024-step window holds 10 Meta-World or 4 Industrial Benchmark episodes.
@@ -284,10 +300,7 @@ class GroupEncoder(nn.Module):
         self.act = _encoder_mlp(spec.act_dim, config.act_emb_dim, config.activation)
         # No reward encoder at all under mask_reward: parameters that never get a gradient would
         # make DDP fail.
-        self.rew = (
-            None if config.mask_reward
-            else nn.Sequential(nn.Linear(1, config.rew_emb_dim), _ACTIVATIONS[config.activation]())
-        )
+        self.rew = None if config.mask_reward else _reward_mlp(config)
         # Episode starts have no previous action/reward; a learned vector says so.
         self.act_pad = nn.Parameter(torch.empty(config.act_emb_dim))
         self.rew_pad = nn.Parameter(torch.empty(config.rew_emb_dim))
@@ -304,6 +317,16 @@ class GroupEncoder(nn.Module):
         else:
             e_rew = torch.where(start, self.rew_pad, self.rew(prev_reward.unsqueeze(-1)))
         return torch.cat([e_obs, e_act, e_rew], dim=-1)
+
+
+def _reward_mlp(config: ModelConfig) -> nn.Sequential:
+    # No LayerNorm here, unlike the obs/action encoders: one scalar times a weight vector has a single
+    # direction, and LayerNorm would keep the direction and drop the scalar, the very thing to encode.
+    act = _ACTIVATIONS[config.activation]
+    layers: list[nn.Module] = [nn.Linear(1, config.rew_emb_dim), act()]
+    if config.reward_encoder == "mlp":
+        layers += [nn.Linear(config.rew_emb_dim, config.rew_emb_dim), act()]
+    return nn.Sequential(*layers)
 
 
 def _action_head(d_model: int, act_dim: int, hidden_layers: int, activation: str) -> nn.Sequential:
@@ -368,7 +391,8 @@ class Vintix(nn.Module):
         self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
         self.ln_f = nn.LayerNorm(config.d_model)
         self.heads = nn.ModuleDict(
-            {g.name: _action_head(config.d_model, g.act_dim, config.head_layers, config.activation) for g in groups}
+            {g.name: _action_head(config.d_model, g.act_dim * (2 if config.policy == "gaussian" else 1),
+                                  config.head_layers, config.activation) for g in groups}
         )
         self.apply(self._init_weights)
         for name, p in self.named_parameters():
@@ -383,6 +407,11 @@ class Vintix(nn.Module):
                 # One input: std 0.02 would make the reward a whisper next to the unit-scale
                 # obs/action parts; 1/sqrt(fan_in) = 1 keeps it audible from the first step.
                 nn.init.normal_(p, mean=0.0, std=1.0)
+            elif name.endswith("rew.0.bias") and config.reward_encoder == "mlp":
+                # Kinks spread over a unit-scale reward range (see TrainConfig.normalize_rewards).
+                nn.init.uniform_(p, -2.0, 2.0)
+            elif name.endswith("rew.2.weight"):
+                nn.init.normal_(p, mean=0.0, std=config.rew_emb_dim**-0.5)
 
     @staticmethod
     def _init_weights(module: nn.Module) -> None:
@@ -440,9 +469,18 @@ class Vintix(nn.Module):
             x = block(x, bias)
         return self.ln_f(x)
 
+    def action_distribution(self, group: str, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Mean action ``[B, T, act_dim]`` from backbone outputs, and its log-std for a gaussian policy
+        (None for a deterministic one)."""
+        out = self.heads[group](h)
+        if self.config.policy == "deterministic":
+            return out, None
+        mean, log_std = out.chunk(2, dim=-1)
+        return mean, log_std.clamp(*LOG_STD_RANGE)
+
     def head(self, group: str, h: torch.Tensor) -> torch.Tensor:
-        """Predicted actions ``[B, T, act_dim]`` from backbone outputs."""
-        return self.heads[group](h)
+        """Predicted (mean) actions ``[B, T, act_dim]`` from backbone outputs."""
+        return self.action_distribution(group, h)[0]
 
     def forward(
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,10 @@ from vintix.model.model import PRESETS, ModelConfig, preset
 
 class ConfigError(VintixError, ValueError):
     """A training config that cannot be read or has unknown/invalid fields."""
+
+
+SELECT_METRICS = ("score", "success")
+"""What checkpoint selection may average over the last selection shots (`TrainConfig.select_metric`)."""
 
 
 @dataclass
@@ -70,6 +75,9 @@ class TrainConfig:
     """ablation: learn the demonstrator's actions instead of the history's (expert distillation); see expert_rows"""
     expert_rows: str = "auto"
     """expert distillation on 'auto': every row, target = the stored demonstrator action, for tasks whose histories all store it (else 'tail'); 'tail': the noise-free tail only (paper)"""
+    normalize_rewards: bool = False
+    """scale each task's rewards to unit std over its data (stored in the checkpoint as the task's reward
+    scale) instead of the registry's fixed scale: a reward encoder then sees every task's rewards at one scale"""
     expert_tail_fraction: float | None = None
     """tail fraction for expert_distillation (default: each task JSON's noise_free_fraction)"""
     seed: int = 0
@@ -93,13 +101,19 @@ class TrainConfig:
     """tasks of that evaluation (empty: the tasks trained on), run on env seeds no history was collected
     on: for Meta-World, hidden goals training never saw"""
     select_shots: int = 8
-    """episodes per selection run; the score is the mean normalized score of the last half of them"""
+    """episodes per selection run; the score is the mean select_metric of the last half of them"""
     select_seeds: int = 3
     """selection runs per task (env seeds select_first_seed, select_first_seed + 1, ...)"""
     select_first_seed: int = 1000
     """env seed of the first selection run (collection seeds are 32-bit hashes, so these are unseen)"""
     select_reference: str = "ours"
     """reference table of the selection score: 'ours' (our measured demonstrators) or 'paper'"""
+    select_metric: str = "score"
+    """what selection averages: 'score' (normalized score) or 'success' (success rate, over the select_tasks
+    that have a success flag, e.g. Meta-World; an error at the first selection if none has)"""
+    select_reward_gap: bool = True
+    """at each selection also run the same shots with zero rewards fed back, and log reward_use_gap (the
+    metric with true rewards minus with zeros: how much the rewards drive it); doubles selection time"""
     stats_cache_dir: str | None = None
     """where normalization statistics are cached (default: ~/.cache/vintix/norm-stats)"""
 
@@ -139,6 +153,9 @@ class TrainConfig:
                               f"got {self.select_every}")
         if self.select_reference not in ("ours", "paper"):
             raise ConfigError(f"select_reference must be 'ours' or 'paper', got {self.select_reference!r}")
+        if self.select_metric not in SELECT_METRICS:
+            raise ConfigError(f"select_metric must be one of {', '.join(map(repr, SELECT_METRICS))}, "
+                              f"got {self.select_metric!r}")
         if self.device not in ("auto", "cpu", "cuda"):
             raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
         context_len = self.model_config().context_len  # also checks model_overrides
@@ -172,15 +189,25 @@ def _parse_override(item: str) -> tuple[str, Any]:
     return key.strip(), yaml.safe_load(value)
 
 
+def shipped_configs() -> list[str]:
+    """Names of the training configs the package ships (`src/vintix/train/configs/`)."""
+    return sorted(p.name.removesuffix(".yaml") for p in resources.files("vintix.train").joinpath("configs").iterdir()
+                  if p.name.endswith(".yaml"))
+
+
 def load_config(config: str, overrides: dict[str, Any] | None = None, settings: list[str] | None = None) -> TrainConfig:
-    """A TrainConfig from a preset name or a YAML file, then ``overrides`` (e.g. --data/--out), then
+    """A TrainConfig from a preset name, a shipped config's name or a YAML file, then ``overrides`` (e.g. --data/--out), then
     ``settings`` (``"field=value"`` strings, values parsed as YAML)."""
     if config in PRESETS:
         fields: dict[str, Any] = {"model": config}
     else:
         path = Path(config)
-        if not path.is_file():
-            raise ConfigError(f"--config {config!r} is neither a model preset ({', '.join(PRESETS)}) nor a YAML file")
+        shipped = Path(str(resources.files("vintix.train").joinpath("configs", f"{config}.yaml")))
+        if not path.is_file() and shipped.is_file():
+            path = shipped
+        elif not path.is_file():
+            raise ConfigError(f"--config {config!r} is neither a model preset ({', '.join(PRESETS)}), a shipped config "
+                              f"({', '.join(shipped_configs())}) nor a YAML file")
         try:
             fields = yaml.safe_load(path.read_text()) or {}
         except yaml.YAMLError as error:

@@ -60,8 +60,9 @@ def task_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
     return [[p.name, p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(paths)]
 
 
-def streaming_obs_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarray, np.ndarray, int]:
-    """Per-channel mean and std over every row, one HDF5 step group (<= 10k rows) at a time.
+def streaming_row_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per-channel mean and std over every row, one HDF5 step group (<= 10k rows) at a time; the
+    reward is the last channel, after the observation's.
 
     Chan et al.'s parallel merge of (count, mean, M2) in float64: exact up to rounding, and memory
     does not grow with the dataset.
@@ -69,7 +70,8 @@ def streaming_obs_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarra
     count, mean, m2 = 0, None, None
     for history in histories:
         for span in history.layout.groups:
-            obs = history.read(span.start, span.stop)["observation"].astype(np.float64)
+            rows = history.read(span.start, span.stop)
+            obs = np.column_stack([rows["observation"], rows["reward"]]).astype(np.float64)
             n, chunk_mean = len(obs), obs.mean(axis=0)
             chunk_m2 = ((obs - chunk_mean) ** 2).sum(axis=0)
             if mean is None:
@@ -100,8 +102,10 @@ def _finite(values: object) -> bool:
     return bool(np.isfinite(np.asarray(values, dtype=np.float64)).all())
 
 
-def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache_dir: Path) -> tuple[list[float], list[float]]:
-    """`streaming_obs_stats` of a task, read from / written to a per-task cache file keyed by fingerprint.
+def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache_dir: Path
+                     ) -> tuple[list[float], list[float], float]:
+    """`streaming_row_stats` of a task (observation mean and std, reward std), read from / written to a
+    per-task cache file keyed by fingerprint.
 
     A cache miss first validates the task's histories (`check_histories`); an entry is written only
     for histories that passed, and one without the ``validated`` mark (older vintix) or with
@@ -114,21 +118,21 @@ def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache
         try:
             cached = json.loads(path.read_text())
             if (cached.get("fingerprint") == fingerprint and cached.get("validated") is True
-                    and _finite(cached["obs_mean"]) and _finite(cached["obs_std"])):
-                return cached["obs_mean"], cached["obs_std"]
+                    and _finite(cached["obs_mean"]) and _finite(cached["obs_std"]) and _finite(cached["reward_std"])):
+                return cached["obs_mean"], cached["obs_std"], cached["reward_std"]
         except (json.JSONDecodeError, KeyError, TypeError, ValueError):
             pass  # a damaged cache entry is recomputed, never trusted
     check_histories(task)
-    mean, std, rows = streaming_obs_stats(histories)
+    mean, std, rows = streaming_row_stats(histories)
     if not (_finite(mean) and _finite(std)):  # validated rows are finite; this guards against overflow
         raise TrainingDataError(
             f"{task.task_dir}: the observation statistics of task {task.task_name!r} are not finite (mean {mean}, "
             f"std {std}): observations too large for float64 sums; check the data with `vintix data validate`"
         )
     entry = {"task_dir": str(task.task_dir.resolve()), "fingerprint": fingerprint, "rows": rows, "validated": True,
-             "obs_mean": mean.tolist(), "obs_std": std.tolist()}
+             "obs_mean": mean[:-1].tolist(), "obs_std": std[:-1].tolist(), "reward_std": float(std[-1])}
     atomic_write_text(path, json.dumps(entry) + "\n")
-    return entry["obs_mean"], entry["obs_std"]
+    return entry["obs_mean"], entry["obs_std"], entry["reward_std"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -283,6 +287,7 @@ def load_training_data(
     expert_tail_fraction: float | None = None,
     stats_cache_dir: str | os.PathLike[str] | None = None,
     expert_rows: str = "auto",
+    normalize_rewards: bool = False,
 ) -> TrainingData:
     """Index a dataset root for training: registry groups, reward scales, cached obs statistics.
 
@@ -290,7 +295,8 @@ def load_training_data(
     train split; empty = every task with histories). The dataset's other registry tasks in the same
     groups get observation statistics only (`TrainingData.held_out`). The reward scale is the task
     JSON's ``reward_scale`` when it has one (the data says how it was recorded), else the registry's;
-    the group always comes from the registry. Expert distillation (see `TrainConfig.expert_rows`)
+    the group always comes from the registry; with ``normalize_rewards`` it is instead 1 / the std of
+    the task's rewards in the data, so every task's rewards reach the model at unit scale. Expert distillation (see `TrainConfig.expert_rows`)
     learns the stored demonstrator actions on every row of a task whose histories all have them,
     else the executed actions of the noise-free tail.
     """
@@ -311,20 +317,24 @@ def load_training_data(
         histories = _histories(task)
         relabel = _learns_demonstrator_actions(histories, expert_distillation, expert_rows)
         tail = None if relabel else _tail_fraction(task, expert_distillation, expert_tail_fraction)
-        windows.append(TaskWindows(spec.name, spec.group, _task_norm(task, spec, histories, cache_dir),
+        windows.append(TaskWindows(spec.name, spec.group, _task_norm(task, spec, histories, cache_dir, normalize_rewards),
                                    [HistoryWindows(h, usable_bounds(h, tail)) for h in histories],
                                    task_fingerprint(task.history_paths),
                                    "demonstrator_action" if relabel else "action"))
-    held_out_norms = [_task_norm(task, spec, _histories(task), cache_dir) for task, spec in held_out]
+    held_out_norms = [_task_norm(task, spec, _histories(task), cache_dir, normalize_rewards) for task, spec in held_out]
     names = [n.task for n in [w.norm for w in windows] + held_out_norms]
     if len(set(names)) != len(names):
         raise TrainingDataError(f"{root}: several task folders hold the same registry task ({sorted(names)}); merge them")
     return TrainingData(root, windows, groups, held_out_norms)
 
 
-def _task_norm(task: TaskData, spec: TaskSpec, histories: Sequence[LearningHistory], cache_dir: Path) -> TaskNorm:
-    mean, std = cached_obs_stats(task, histories, cache_dir)
-    return TaskNorm(spec.name, spec.group, mean, std, float(task.metadata.get("reward_scale", spec.reward_scale)))
+def _task_norm(task: TaskData, spec: TaskSpec, histories: Sequence[LearningHistory], cache_dir: Path,
+               normalize_rewards: bool) -> TaskNorm:
+    mean, std, reward_std = cached_obs_stats(task, histories, cache_dir)
+    scale = float(task.metadata.get("reward_scale", spec.reward_scale))
+    if normalize_rewards:
+        scale = 1.0 / max(reward_std, 1e-8)  # a task whose reward never changes keeps it near 0 either way
+    return TaskNorm(spec.name, spec.group, mean, std, scale)
 
 
 def _registry_spec(task: TaskData) -> TaskSpec:

@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import torch
 import torch.distributed as dist
@@ -46,12 +47,26 @@ from vintix.train.checkpoint import (
 from vintix.train.config import ConfigError, TrainConfig
 from vintix.train.data import Batch, TrainingData, WindowBatches, WindowDataset, collate_windows, load_training_data
 
+_Result = TypeVar("_Result")
 Callback = Callable[[Vintix, int], None]
 """Called on rank 0 as ``callback(model, step)`` after an optimizer step."""
-Scorer = Callable[[Vintix, Sequence[str]], float]
-"""``scorer(model, tasks)``: the model's cold-start in-context score on ``tasks`` (higher is better),
-which chooses the best checkpoint; `vintix.evaluate.in_context_scorer` makes one from a TrainConfig.
-It lives above training (it runs envs and the agent), so the trainer takes it as an argument."""
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What one in-context checkpoint selection measured."""
+
+    score: float
+    """the selection metric with the true rewards fed back (higher is better): it chooses the best checkpoint"""
+    reward_use_gap: float = math.nan
+    """the score minus the same run's with zero rewards fed back: how much of it the rewards earn (in-context
+    RL's signature; near 0, the model improves over shots without reading rewards); NaN when not measured"""
+
+
+Scorer = Callable[[Vintix, Sequence[str]], Selection]
+"""``scorer(model, tasks)``: the model's cold-start in-context `Selection` on ``tasks``, whose score chooses
+the best checkpoint; `vintix.evaluate.in_context_scorer` makes one from a TrainConfig. It lives above
+training (it runs envs and the agent), so the trainer takes it as an argument."""
 
 
 class NonFiniteLossError(VintixError, RuntimeError):
@@ -64,7 +79,7 @@ class NonFiniteLossError(VintixError, RuntimeError):
 
 
 class WindowLoss(nn.Module):
-    """Per-window MSE of a micro-batch that may mix groups.
+    """Per-window MSE (a gaussian policy: negative log-likelihood) of a micro-batch that may mix groups.
 
     Each group's windows go through their own encoder, all windows through one backbone call, then
     each group's head. Wrapping this (not the model) in DDP makes the whole mixed-group pass one
@@ -82,8 +97,13 @@ class WindowLoss(nn.Module):
         hidden = self.model.backbone(torch.cat(tokens))
         losses = []
         for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens])):
-            prediction = self.model.head(group, part).float()
-            losses.append(F.mse_loss(prediction, batch[group]["action"], reduction="none").mean(dim=(1, 2)))
+            mean, log_std = self.model.action_distribution(group, part)
+            target = batch[group]["action"]
+            if log_std is None:
+                loss = F.mse_loss(mean.float(), target, reduction="none")
+            else:  # a gaussian policy: negative log-likelihood (up to a constant)
+                loss = F.gaussian_nll_loss(mean.float(), target, (2 * log_std.float()).exp(), reduction="none")
+            losses.append(loss.mean(dim=(1, 2)))
         return torch.cat(losses)
 
 
@@ -198,12 +218,16 @@ def init_distributed(device_name: str) -> tuple[Distributed, torch.device]:
 # Logs
 
 
+_TENSORBOARD_TAGS = {"in_context_score": "in_context/score", "reward_use_gap": "in_context/reward_use_gap"}
+
+
 class MetricsLog:
     """One CSV row per log step (and TensorBoard scalars); a resumed run first drops rows past its step."""
 
     def __init__(self, out: Path, groups: Sequence[str], resume_step: int, tensorboard: bool) -> None:
+        # A log.csv from before a column existed is rewritten with it, empty in its old rows.
         self.columns = ["step", "tokens", "loss", "lr", "grad_norm", "tokens_per_s", "mfu", "in_context_score",
-                        *[f"loss_{g}" for g in groups]]
+                        "reward_use_gap", *[f"loss_{g}" for g in groups]]
         self.path = out / "log.csv"
         kept = []
         if resume_step and self.path.is_file():
@@ -227,7 +251,7 @@ class MetricsLog:
         if self.tensorboard is not None:
             for key, value in row.items():
                 if key not in ("step", "tokens") and math.isfinite(value):
-                    tag = key.replace("loss_", "loss/").replace("in_context_score", "in_context/score")
+                    tag = _TENSORBOARD_TAGS.get(key, key.replace("loss_", "loss/"))
                     self.tensorboard.add_scalar(tag, value, int(row["step"]))
 
     def close(self) -> None:
@@ -248,7 +272,8 @@ class Trainer:
     ``every``-th optimizer step with the model in eval mode, inside a forked RNG so it cannot
     change the rest of the run. ``scorer`` runs the same way every ``config.select_every`` steps on
     the selection tasks; a score above the best so far replaces ``checkpoints/best`` (DESIGN §6:
-    training loss does not tell when a model has in-context skill).
+    training loss does not tell when a model has in-context skill), and the score and its reward-use
+    gap go to the log.
     """
 
     def __init__(self, config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (),
@@ -294,7 +319,7 @@ class Trainer:
             self.dist.barrier()
         data = load_training_data(self.config.data, self.config.tasks, self.config.expert_distillation,
                                   self.config.expert_tail_fraction, self.config.stats_cache_dir,
-                                  self.config.expert_rows)
+                                  self.config.expert_rows, self.config.normalize_rewards)
         if self.dist.is_main:
             self.dist.barrier()
         return data
@@ -368,15 +393,17 @@ class Trainer:
                 "dataset_fingerprint": self.data.fingerprint, "trained_tasks": [t.name for t in self.data.tasks],
                 "train_config": dataclasses.asdict(self.config)}
 
-    def _select(self) -> float:
-        """Score the model in context (rank 0 only); keep it as ``checkpoints/best`` if it beats the best."""
-        score = float(self._in_eval_mode_with_forked_rng(lambda: self.scorer(self.model, self.select_tasks)))  # type: ignore[misc]
-        if self.best_score is None or score > self.best_score:
-            self.best_score = score
+    def _select(self) -> Selection:
+        """Score the model in context (rank 0 only); keep it as ``checkpoints/best`` if its score beats the best."""
+        selection = self._in_eval_mode_with_forked_rng(lambda: self.scorer(self.model, self.select_tasks))  # type: ignore[misc]
+        if self.best_score is None or selection.score > self.best_score:
+            self.best_score = selection.score
+            gap = selection.reward_use_gap
             save_best_checkpoint(self.out, self.model, {
-                **self._model_extra(), "in_context_score": score, "select_tasks": self.select_tasks,
-                "select_reference": self.config.select_reference})
-        return score
+                **self._model_extra(), "in_context_score": selection.score,
+                "reward_use_gap": gap if math.isfinite(gap) else None, "select_tasks": self.select_tasks,
+                "select_reference": self.config.select_reference, "select_metric": self.config.select_metric})
+        return selection
 
     def _loader(self) -> torch.utils.data.DataLoader:
         cfg = self.config
@@ -445,10 +472,10 @@ class Trainer:
             self.step += 1
             self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
             progress.update(1)
-            score = math.nan
+            selection = Selection(math.nan)
             if cfg.select_every and self.step % cfg.select_every == 0 and self.dist.is_main:
                 started = time.perf_counter()
-                score = self._select()
+                selection = self._select()
                 last_time += time.perf_counter() - started  # evaluation time is not training time
             if self.step % cfg.log_every == 0 or self.step == stop:
                 if self.dist.world_size > 1:
@@ -459,7 +486,8 @@ class Trainer:
                 row = {"step": self.step, "tokens": self.tokens,
                        "loss": float(sums[:, 0].sum() / sums[:, 1].sum()), "lr": lr, "grad_norm": float(grad_norm),
                        "tokens_per_s": (self.tokens - last_tokens) / elapsed,
-                       "mfu": float(sums[:, 2].sum() / elapsed / peak), "in_context_score": score,
+                       "mfu": float(sums[:, 2].sum() / elapsed / peak), "in_context_score": selection.score,
+                       "reward_use_gap": selection.reward_use_gap,
                        **{f"loss_{g}": (per_group[i] if sums[i, 1] else math.nan) for i, g in enumerate(groups)}}
                 if log is not None:
                     log.write(row)
@@ -487,7 +515,7 @@ class Trainer:
         if due and self.dist.is_main:
             self._in_eval_mode_with_forked_rng(lambda: [fn(self.model, self.step) for fn in due])
 
-    def _in_eval_mode_with_forked_rng(self, work: Callable[[], object]) -> object:
+    def _in_eval_mode_with_forked_rng(self, work: Callable[[], _Result]) -> _Result:
         """Run `work` with the model in eval mode inside a forked RNG, so it cannot change the run."""
         self.model.eval()
         try:
