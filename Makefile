@@ -16,16 +16,24 @@ $(INSTALLED): requirements.lock pyproject.toml
 
 install: $(INSTALLED)
 
-# Watch the shipped model (src/vintix/agent/pretrained/cpu-suite, trained on the CPU suite by the
-# commands in its TRAINING.md) learn in context: cold-start many-shot runs on Meta-World goals, Industrial
-# Benchmark seeds and MuJoCo seeds it never saw in training, plus a held-out setpoint; a per-shot table
-# of normalized scores, then a report with curves. No training. Outputs under demo/.
+# The reward-ablation test on the shipped models, cold start on goals and seeds training never used
+# (README: "In-context RL"): each plays with the true rewards fed back, then with zeros; scores and
+# success always come from the true returns. point-goal (the toy hidden-goal task) shows rewards doing
+# the work; cpu-suite (Meta-World, Industrial Benchmark, MuJoCo) shows a model whose gain over shots
+# does not come from rewards. Per-shot tables of score and success rate, then a report with the
+# reward-use gap per task, under demo/. No training.
 DEMO := demo
-DEMO_TASKS := reach-v3,push-v3,button-press-v3,drawer-close-v3,door-open-v3,window-open-v3,industrial-benchmark-30-v1,industrial-benchmark-70-v1,industrial-benchmark-90-v1,Reacher-v5,Pusher-v5
+DEMO_SUITE_TASKS := reach-v3,push-v3,industrial-benchmark-30-v1,industrial-benchmark-70-v1,industrial-benchmark-90-v1,Reacher-v5,Pusher-v5
+DEMO_EVAL := --shots 10 --first-seed 100 --reference ours
 demo: $(INSTALLED)
-	$(BIN)/vintix eval --checkpoint cpu-suite --tasks $(DEMO_TASKS) --shots 10 --seeds 3 --first-seed 100 \
-		--reference ours --label "Vintix cpu-suite" --out $(DEMO)/results
-	$(BIN)/vintix report $(DEMO)/results --reference ours --plateau-shots 3 --out $(DEMO)/report
+	for rewards in true zero; do \
+	  $(BIN)/vintix eval --checkpoint point-goal --tasks point-goal-v1 --seeds 20 $(DEMO_EVAL) --reward-input $$rewards \
+	    --label point-goal --out $(DEMO)/point-goal/$$rewards || exit 1; \
+	  $(BIN)/vintix eval --checkpoint cpu-suite --tasks $(DEMO_SUITE_TASKS) --seeds 3 $(DEMO_EVAL) --reward-input $$rewards \
+	    --label cpu-suite --out $(DEMO)/cpu-suite/$$rewards || exit 1; \
+	done
+	$(BIN)/vintix report $(DEMO)/point-goal/true $(DEMO)/point-goal/zero --reference ours --plateau-shots 3 --out $(DEMO)/report/point-goal
+	$(BIN)/vintix report $(DEMO)/cpu-suite/true $(DEMO)/cpu-suite/zero --reference ours --plateau-shots 3 --out $(DEMO)/report/cpu-suite
 
 test: $(INSTALLED)
 	$(BIN)/python -m pytest -q
