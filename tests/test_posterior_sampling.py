@@ -55,6 +55,24 @@ def test_posterior_sampling_starts_blind_and_finds_the_goal_from_rewards():
     assert success[:, -2:].mean() >= 0.7
 
 
+def test_a_probing_first_episode_is_the_same_for_every_goal_and_later_ones_aim_at_the_likeliest_goal():
+    demonstrator = load_demonstrator("point-goal-v1", behaviour="posterior-sampling")  # the toy probes
+    envs = [make_env("point-goal-v1", seed=seed) for seed in (1, 2, 3)]
+    demonstrator.begin(envs, [np.random.default_rng(seed) for seed in (7, 8, 9)])
+    observations = np.stack([env.reset()[0] for env in envs])
+    first = []
+    for _ in range(EPISODE_LENGTH):
+        actions = demonstrator.act(observations, envs)
+        first.append(actions)
+        for i, env in enumerate(envs):
+            observations[i], reward, terminated, truncated, _ = env.step(actions[i])
+            demonstrator.observe(i, env, actions[i], reward, terminated or truncated)
+    assert all(np.array_equal(step[0], step[i]) for step in first for i in (1, 2))  # nothing about the goal yet
+    guesses = np.stack([posterior.aim() for posterior in demonstrator._posteriors])
+    goals = np.stack([env.unwrapped.true_goal for env in envs])
+    assert np.abs(guesses - goals).max() < SUCCESS_RADIUS  # one probing episode's rewards tell each goal
+
+
 def test_metaworld_rewards_under_the_true_goal_are_the_envs_rewards():
     env = make_env("reach-v3", seed=5)
     env.reset()

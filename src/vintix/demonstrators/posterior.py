@@ -9,7 +9,10 @@ from the task's goal prior, each weighted by how well it explains every reward s
 task's own reward function with that goal swapped in, `rewards_under_goals`, against the reward
 observed, with a Gaussian tolerance since no candidate is exactly the true goal). At the start of
 every episode it draws one candidate from that posterior and plays the task's expert aimed at it for
-the whole episode. Between episodes the candidates are resampled by weight and jittered a little
+the whole episode. With `probe_steps`, the first episode instead visits corners of the goal box in a
+fixed order and later episodes aim at the most likely goal: then the behaviour is a deterministic
+function of the rewards so far, which a model trained to predict the mean action can imitate (a
+guess drawn at random cannot be: its mean is the prior's middle). Between episodes the candidates are resampled by weight and jittered a little
 (a regularized particle filter), so they gather around the goal and can end nearer to it than any
 of the first draws: Meta-World's reach needs the hand within 5 cm of the goal, and 256 draws from
 its goal box leave the nearest about 1.5 cm away. So the first episode of a history is a guess from the prior, and later ones
@@ -69,25 +72,49 @@ class PosteriorSettings:
     the last step of an episode always updates"""
     jitter: float = 0.3
     """std of the jitter after resampling, as a fraction of the candidates' spread (per dimension)"""
+    probe_steps: int = 0
+    """0: the first episode aims at a goal drawn from the prior, like every later one. N > 0: it visits
+    corners of the prior's box, N steps each, in a fixed order, and every later episode aims at the
+    most likely goal rather than a drawn one: a behaviour that is a deterministic function of the
+    rewards so far, which a model predicting the mean action can imitate"""
     min_jitter: float = 0.05
     """least jitter, as a fraction of the prior's spread: a posterior collapsed onto one candidate
     still moves, so it keeps searching around it"""
 
 
-# Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1].
-DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(), "toy": PosteriorSettings(reward_tolerance=0.05, update_every=1)}
+# Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1]. The toy probes: 5 steps
+# reach either end of its goal range.
+DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(), "toy": PosteriorSettings(reward_tolerance=0.05, update_every=1, probe_steps=5)}
+
+
+def _probe_corners(low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Corners of the box [low, high] to probe: both ends of a segment; in more dimensions the corners
+    with an even number of coordinates at `high` (in 3-D a tetrahedron, from which distances fix a point)."""
+    if len(low) == 1:
+        return np.array([high, low])
+    bits = np.array([[(i >> d) & 1 for d in range(len(low))] for i in range(2 ** len(low))])
+    even = bits[bits.sum(axis=1) % 2 == 0]
+    return np.where(even == 1, high, low)
 
 
 class _GoalPosterior:
     """One env's candidate goals, their log-weights, and the goal it plays this episode."""
 
-    def __init__(self, candidates: np.ndarray, rng: np.random.Generator, settings: PosteriorSettings) -> None:
+    def __init__(self, box: tuple[np.ndarray, np.ndarray], rng: np.random.Generator, settings: PosteriorSettings,
+                 candidates: np.ndarray) -> None:
         self.candidates, self.rng, self.settings = candidates, rng, settings
         self.log_weights = np.zeros(len(candidates))
-        self.low, self.high = candidates.min(axis=0), candidates.max(axis=0)
+        self.low, self.high = box
         self.min_jitter = settings.min_jitter * candidates.std(axis=0)
-        self.steps = 0
+        self.steps, self.episode = 0, 0
+        self.corners = _probe_corners(self.low, self.high)
         self.guess = self._draw()
+
+    def aim(self) -> np.ndarray:
+        """The goal this step aims at: a probe corner in a probing first episode, else the episode's guess."""
+        if self.settings.probe_steps and self.episode == 0:
+            return self.corners[min(self.steps // self.settings.probe_steps, len(self.corners) - 1)]
+        return self.guess
 
     def update(self, candidate_rewards: np.ndarray, reward: float) -> None:
         self.log_weights -= 0.5 * ((candidate_rewards - reward) / self.settings.reward_tolerance) ** 2
@@ -106,8 +133,9 @@ class _GoalPosterior:
         weights = self._weights()
         if 1.0 / np.sum(weights**2) < len(weights) / 2:
             self._resample_and_jitter()
-        self.guess = self._draw()
+        self.guess = self.candidates[np.argmax(self.log_weights)] if self.settings.probe_steps else self._draw()
         self.steps = 0
+        self.episode += 1
 
     def _resample_and_jitter(self) -> None:
         chosen = self.candidates[self.rng.choice(len(self.candidates), size=len(self.candidates), p=self._weights())]
@@ -127,14 +155,15 @@ class PosteriorSamplingDemonstrator:
 
     def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
         self._posteriors = [
-            _GoalPosterior(env.unwrapped.goal_prior(rng, self.settings.candidates), rng, self.settings)  # type: ignore[attr-defined]
+            _GoalPosterior(env.unwrapped.goal_box(), rng, self.settings,  # type: ignore[attr-defined]
+                           env.unwrapped.goal_prior(rng, self.settings.candidates))  # type: ignore[attr-defined]
             for env, rng in zip(envs, rngs)
         ]
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         if len(self._posteriors) != len(envs):
             raise RuntimeError("PosteriorSamplingDemonstrator.begin(envs, rngs) must come before act")
-        return self.expert.act_toward(observations, np.stack([p.guess for p in self._posteriors]))
+        return self.expert.act_toward(observations, np.stack([p.aim() for p in self._posteriors]))
 
     def expert_act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         return self.expert.act(observations, envs)

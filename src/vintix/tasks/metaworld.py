@@ -81,11 +81,16 @@ class MetaWorldTaskEnv(gym.Env):
     # What a goal-inferring demonstrator may use (never a model): the prior over goals, the reward the
     # current state would earn under other goals, and the true goal.
 
-    def goal_prior(self, rng: np.random.Generator, count: int) -> np.ndarray:
-        """`count` goals drawn uniformly from the task's goal space (for tasks whose hidden goal is drawn
-        at random, e.g. reach-v3 and push-v3, the box the env draws it from)."""
+    def goal_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds of the task's goal space (for tasks whose hidden goal is drawn at random, e.g.
+        reach-v3 and push-v3, the box the env draws it from)."""
         space = self._sawyer.goal_space
-        return rng.uniform(space.low, space.high, size=(count, len(space.low)))
+        return np.array(space.low, dtype=np.float64), np.array(space.high, dtype=np.float64)
+
+    def goal_prior(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """`count` goals drawn uniformly from `goal_box`."""
+        low, high = self.goal_box()
+        return rng.uniform(low, high, size=(count, len(low)))
 
     def rewards_under_goals(self, goals: np.ndarray, action: np.ndarray) -> np.ndarray:
         """The reward the last step (`action`, into the current state) would have earned had the hidden

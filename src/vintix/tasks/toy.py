@@ -1,15 +1,16 @@
 """A toy hidden-goal task: the smallest problem where only rewards can reveal what to do.
 
-`point-goal-v1` is a point on a line that must reach a hidden goal, a miniature of Meta-World's
-reach-v3 (one dimension instead of three): the point starts at the same place every episode, left
-of every goal; the goal is drawn once per env from its seed and never observed; the dense reward
-says how far the point is from it. An agent that ignores rewards can only head for the middle of the
-goal range (success on about a quarter of goals); one that reads its rewards knows the goal after
-its first step, since every goal lies on the same side. A small model learns that in CPU minutes,
-so the test suite uses it to check that the whole chain (collection, training, the agent) keeps the
-model's use of rewards alive. (With goals on both sides of the start, a model that predicts the mean
-action stands still where left and right are equally likely and never learns which: see
-`vintix.model.ModelConfig.policy`.)
+`point-goal-v1` is a point on a line that must end its episodes at a hidden goal, a miniature of
+Meta-World's reach-v3 (one dimension instead of three): the point starts at the same place every
+episode, the goal is drawn once per env from its seed and never observed, and the dense reward says
+how far the point is from it. The goal is as likely left as right of the start, so an agent that
+ignores rewards can only stay near the middle (success on about 10 % of goals), and so does a model
+that predicts the mean action of a demonstrator who guesses: where left and right are equally likely
+the mean is to stand still, which teaches nothing. A demonstrator that probes both ends in its first
+episode and then goes to the most likely goal (`PosteriorSettings.probe_steps`) can be imitated, and
+a small model trained on its histories learns, in CPU minutes, to find the goal from the rewards of
+its first episode. The test suite uses it to check that the whole chain (collection, training, the
+agent) keeps the model's use of rewards alive.
 
 It is not a task of the paper: no published scores, domain ``toy``.
 """
@@ -23,7 +24,7 @@ import numpy as np
 
 EPISODE_LENGTH = 10
 START = np.array([0.0])
-GOAL_LOW, GOAL_HIGH = np.array([0.25]), np.array([1.0])
+GOAL_LOW, GOAL_HIGH = np.array([-1.0]), np.array([1.0])
 SPEED = 0.25
 """How far one step at full action moves the point: 4 of the 10 steps reach any goal."""
 SUCCESS_RADIUS = 0.1
@@ -66,6 +67,10 @@ class PointGoalEnv(gym.Env):
 
     # What a goal-inferring demonstrator may use (never a model): the prior over goals, the reward the
     # current state would earn under other goals, and the true goal.
+
+    def goal_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds of the hidden goal."""
+        return GOAL_LOW.copy(), GOAL_HIGH.copy()
 
     def goal_prior(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """`count` goals drawn from the distribution the env draws its hidden goal from."""
