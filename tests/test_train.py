@@ -395,6 +395,7 @@ def test_normalized_rewards_reach_the_model_at_unit_scale_and_a_gaussian_policy_
 
 def test_shipped_training_configs_load_by_name_and_an_unknown_one_lists_them():
     config = load_config("point-goal", {"data": "d", "out": "o"})
-    assert config.normalize_rewards and config.expert_distillation and config.model_config().reward_encoder == "mlp"
+    assert config.normalize_rewards and config.model_config().reward_encoder == "mlp" and config.out == "o"
+    assert load_config("icrl-suite").expert_distillation  # the goal-aware expert's action as the target
     with pytest.raises(ConfigError, match="icrl-suite"):
         load_config("no-such-config")
