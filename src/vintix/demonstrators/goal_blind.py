@@ -14,15 +14,18 @@ from __future__ import annotations
 import csv
 import datetime
 import io
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
 from importlib import resources
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 
 from vintix.atomic import atomic_write_text
 from vintix.demonstrators.base import load_demonstrator
 from vintix.demonstrators.posterior import GoalConditionedExpert
+from vintix.demonstrators.scores import episode_outcomes
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
 
@@ -67,26 +70,15 @@ def mean_goal(task: str) -> np.ndarray:
     return np.mean(goals, axis=0)
 
 
-def play_aimed(task: str, expert: GoalConditionedExpert, seeds: range, goal: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Success (1 if reached at any step) and return of one episode per seed, the expert aimed at
-    `goal` in every env, or at each env's true goal when `goal` is None."""
-    envs = [make_env(task, seed=seed) for seed in seeds]
-    observations = np.stack([env.reset()[0] for env in envs])
-    goals = np.stack([env.unwrapped.true_goal if goal is None else goal for env in envs])  # type: ignore[attr-defined]
-    success, returns = np.zeros(len(envs)), np.zeros(len(envs))
-    running = np.ones(len(envs), dtype=bool)
-    while running.any():
-        active = np.flatnonzero(running)
-        actions = expert.act_toward(observations[active], goals[active])
-        for i, action in zip(active, actions):
-            low, high = envs[i].action_space.low, envs[i].action_space.high
-            observations[i], reward, terminated, truncated, info = envs[i].step(np.clip(action, low, high))
-            returns[i] += float(reward)
-            success[i] = max(success[i], float(info.get("success", 0.0)))
-            running[i] = not (terminated or truncated)
-    for env in envs:
-        env.close()
-    return success, returns
+class AimedExpert:
+    """A goal-conditioned expert aimed at `goal` in every env, or at each env's true goal when None."""
+
+    def __init__(self, expert: GoalConditionedExpert, goal: np.ndarray | None) -> None:
+        self.expert, self.goal = expert, goal
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        goals = np.stack([env.unwrapped.true_goal if self.goal is None else self.goal for env in envs])  # type: ignore[attr-defined]
+        return np.clip(self.expert.act_toward(observations, goals), envs[0].action_space.low, envs[0].action_space.high)
 
 
 def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, command: str = "") -> GoalBlindResult:
@@ -96,9 +88,9 @@ def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, comma
     if not hasattr(expert, "act_toward"):
         raise VintixError(f"{spec.name!r} has no hidden goal a scripted expert can be aimed at (Meta-World and toy "
                           "tasks do); a goal-blind baseline needs one")
-    runs = range(first_seed, first_seed + seeds)
-    true_success, true_returns = play_aimed(spec.name, expert, runs, None)  # type: ignore[arg-type]
-    blind_success, blind_returns = play_aimed(spec.name, expert, runs, mean_goal(spec.name))  # type: ignore[arg-type]
+    true_returns, true_success = episode_outcomes(spec.name, AimedExpert(expert, None), seeds, first_seed)  # type: ignore[arg-type]
+    blind_returns, blind_success = episode_outcomes(spec.name, AimedExpert(expert, mean_goal(spec.name)),  # type: ignore[arg-type]
+                                                    seeds, first_seed)
     return GoalBlindResult(spec.name, seeds, first_seed, float(true_success.mean()), float(blind_success.mean()),
                            round(float(true_returns.mean()), 3), round(float(blind_returns.mean()), 3),
                            datetime.date.today().isoformat(), command)

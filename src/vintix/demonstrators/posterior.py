@@ -9,14 +9,15 @@ from the task's goal prior, each weighted by how well it explains every reward s
 task's own reward function with that goal swapped in, `rewards_under_goals`, against the reward
 observed, with a Gaussian tolerance since no candidate is exactly the true goal). At the start of
 every episode it draws one candidate from that posterior and plays the task's expert aimed at it for
-the whole episode. With `probe_steps`, the first episode instead visits corners of the goal box in a
-fixed order and later episodes aim at the most likely goal: then the behaviour is a deterministic
-function of the rewards so far, which a model trained to predict the mean action can imitate (a
-guess drawn at random cannot be: its mean is the prior's middle). Between episodes the candidates are resampled by weight and jittered a little
-(a regularized particle filter), so they gather around the goal and can end nearer to it than any
-of the first draws: Meta-World's reach needs the hand within 5 cm of the goal, and 256 draws from
-its goal box leave the nearest about 1.5 cm away. So the first episode of a history is a guess from the prior, and later ones
-home in as fast as the rewards allow. What it proposes as the training target
+the whole episode, so the first episode of a history is a guess from the prior and later ones home
+in as fast as the rewards allow. With `probe_steps`, the first episode instead visits corners of the
+goal box in a fixed order and later episodes aim at the most likely goal: then the behaviour is a
+deterministic function of the rewards so far, which a model trained to predict the mean action can
+imitate (a guess drawn at random cannot be: its mean is the prior's middle). Between episodes the
+candidates are resampled by weight and jittered a little (a regularized particle filter), so they
+gather around the goal and can end nearer to it than any of the first draws: Meta-World's reach
+needs the hand within 5 cm of the goal, and 256 draws from its goal box leave the nearest about
+1.5 cm away. What it proposes as the training target
 (`demonstrator_action`) is the goal-aware expert's action: the action that is right given the
 true goal, which a model can only match by inferring the goal from the context's rewards.
 """

@@ -71,20 +71,26 @@ def env_version(spec: TaskSpec) -> str:
 def episode_returns(task: str, policy: Demonstrator, episodes: int, seed: int = 0) -> np.ndarray:
     """One episode in each of `episodes` envs (env i seeded `seed + i`: for Meta-World, its own hidden
     goal), stepped in lockstep so the policy acts on a batch; returns their undiscounted returns."""
+    return episode_outcomes(task, policy, episodes, seed)[0]
+
+
+def episode_outcomes(task: str, policy: Demonstrator, episodes: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """`episode_returns`, and each episode's success (1 if the env flagged success at any step, else 0)."""
     envs = [make_env(task, seed=seed + i) for i in range(episodes)]
     observations = np.stack([env.reset()[0] for env in envs])
-    returns = np.zeros(episodes)
+    returns, success = np.zeros(episodes), np.zeros(episodes)
     running = np.ones(episodes, dtype=bool)
     while running.any():
         active = np.flatnonzero(running)
         actions = policy.act(observations[active], [envs[i] for i in active])
         for i, action in zip(active, actions):
-            observations[i], reward, terminated, truncated, _ = envs[i].step(action)
+            observations[i], reward, terminated, truncated, info = envs[i].step(action)
             returns[i] += float(reward)
+            success[i] = max(success[i], float(info.get("success", 0.0)))
             running[i] = not (terminated or truncated)
     for env in envs:
         env.close()
-    return returns
+    return returns, success
 
 
 def measure(task: str, policy_name: str, policy: Demonstrator, episodes: int, seed: int, command: str) -> MeasuredScore:
