@@ -15,9 +15,9 @@ from vintix.tasks.toy import EPISODE_LENGTH, START, SUCCESS_RADIUS
 NO_NOISE = NoiseSchedule(noise_free_fraction=1.0)
 
 
-def play_episodes(task: str, seeds: range, episodes: int) -> np.ndarray:
-    """Success per (env, episode) of the posterior-sampling demonstrator, one history per env seed."""
-    demonstrator = load_demonstrator(task, behaviour="posterior-sampling")
+def play_episodes(task: str, seeds: range, episodes: int, behaviour: str = "posterior-sampling") -> np.ndarray:
+    """Success per (env, episode) of a demonstrator that infers the goal, one history per env seed."""
+    demonstrator = load_demonstrator(task, behaviour=behaviour)
     envs = [make_env(task, seed=seed) for seed in seeds]
     demonstrator.begin(envs, [np.random.default_rng(seed) for seed in seeds])
     observations = np.stack([env.reset()[0] for env in envs])
@@ -55,8 +55,13 @@ def test_posterior_sampling_starts_blind_and_finds_the_goal_from_rewards():
     assert success[:, -2:].mean() >= 0.7
 
 
+def test_probing_on_metaworld_reach_finds_the_goal_after_its_first_episode():
+    success = play_episodes("reach-v3", range(100, 110), episodes=3, behaviour="probing")
+    assert success[:, 1:].mean() >= 0.8  # goal-blind: 0.15
+
+
 def test_a_probing_first_episode_is_the_same_for_every_goal_and_later_ones_aim_at_the_likeliest_goal():
-    demonstrator = load_demonstrator("point-goal-v1", behaviour="posterior-sampling")  # the toy probes
+    demonstrator = load_demonstrator("point-goal-v1", behaviour="probing")
     envs = [make_env("point-goal-v1", seed=seed) for seed in (1, 2, 3)]
     demonstrator.begin(envs, [np.random.default_rng(seed) for seed in (7, 8, 9)])
     observations = np.stack([env.reset()[0] for env in envs])

@@ -11,7 +11,7 @@ Each history records the settings it was made with (root attributes: env seed, b
 noise schedule, with the knots its pilot fitted if it had one, and the demonstrator's behaviour when
 it is not the expert's) and, per step, the demonstrator's action before noise
 (``demonstrator_action``). A demonstrator that infers the hidden goal from rewards
-(``behaviour: posterior-sampling``, `vintix.demonstrators.posterior`) plays the history, and the
+(``behaviour: posterior-sampling`` or ``probing``, `vintix.demonstrators.posterior`) plays the history, and the
 goal-aware expert's action is what ``demonstrator_action`` records: the action a model can only
 predict by reading the context's rewards.
 Re-running into a folder whose histories were made with other settings is refused
@@ -65,8 +65,8 @@ class CollectionPlan:
     """Histories stepped in lockstep in one process (one batched demonstrator call per step; more
     histories per call leave more of the process's time to the simulator, `vintix bench collect`)."""
     behaviour: str = "expert"
-    """How the demonstrator plays: 'expert' (sees the hidden goal) or 'posterior-sampling' (infers it
-    from the rewards it earns; Meta-World and toy tasks)."""
+    """How the demonstrator plays: 'expert' (sees the hidden goal), or 'posterior-sampling' / 'probing'
+    (infers it from the rewards it earns; Meta-World and toy tasks; `vintix.demonstrators.posterior`)."""
 
     def __post_init__(self) -> None:
         check_field_types(self, CollectionError)

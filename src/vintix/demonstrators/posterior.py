@@ -10,8 +10,8 @@ task's own reward function with that goal swapped in, `rewards_under_goals`, aga
 observed, with a Gaussian tolerance since no candidate is exactly the true goal). At the start of
 every episode it draws one candidate from that posterior and plays the task's expert aimed at it for
 the whole episode, so the first episode of a history is a guess from the prior and later ones home
-in as fast as the rewards allow. With `probe_steps`, the first episode instead visits corners of the
-goal box in a fixed order and later episodes aim at the most likely goal: then the behaviour is a
+in as fast as the rewards allow. With `probe_steps` (behaviour 'probing'), the first episode instead
+visits corners of the goal box in a fixed order and later episodes aim at the most likely goal: then the behaviour is a
 deterministic function of the rewards so far, which a model trained to predict the mean action can
 imitate (a guess drawn at random cannot be: its mean is the prior's middle). Between episodes the
 candidates are resampled by weight and jittered a little (a regularized particle filter), so they
@@ -25,7 +25,7 @@ true goal, which a model can only match by inferring the goal from the context's
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 import gymnasium as gym
@@ -83,9 +83,18 @@ class PosteriorSettings:
     still moves, so it keeps searching around it"""
 
 
-# Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1]. The toy probes: 5 steps
-# reach either end of its goal range.
-DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(), "toy": PosteriorSettings(reward_tolerance=0.05, update_every=1, probe_steps=5)}
+# Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1].
+DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(), "toy": PosteriorSettings(reward_tolerance=0.05, update_every=1)}
+
+# Steps at each probed corner, per domain, so that the probe fills the first episode: Meta-World's 3-D
+# goal boxes have 4 corners to probe (a tetrahedron) in a 100-step episode, the toy's range 2 ends in 10.
+PROBE_STEPS = {"metaworld": 25, "toy": 5}
+
+
+def posterior_settings(domain: str, behaviour: str) -> PosteriorSettings:
+    """The settings of `behaviour` ('posterior-sampling' or 'probing') on tasks of `domain`."""
+    settings = DEFAULT_SETTINGS[domain]
+    return replace(settings, probe_steps=PROBE_STEPS[domain]) if behaviour == "probing" else settings
 
 
 def _probe_corners(low: np.ndarray, high: np.ndarray) -> np.ndarray:
