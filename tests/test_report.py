@@ -145,6 +145,23 @@ def test_a_folder_without_results_or_without_references_is_a_clear_error(two_res
 
 
 
+def edit_rows(edit):
+    """A damage that rewrites the rows of a results folder's episodes.csv with `edit(rows) -> rows`."""
+    def damage(folder):
+        with (folder / "episodes.csv").open() as f:
+            reader = csv.DictReader(f)
+            fields, rows = reader.fieldnames, list(reader)
+        with (folder / "episodes.csv").open("w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=fields)
+            writer.writeheader()
+            writer.writerows(edit(rows))
+    return damage
+
+
+def set_first(column, value):
+    return edit_rows(lambda rows: [{**rows[0], column: value}, *rows[1:]])
+
+
 @pytest.mark.parametrize(("damage", "message"), [
     (lambda f: (f / "episodes.csv").write_text("a,b\n1,2\n"), "not a `vintix eval` episodes table"),
     (lambda f: (f / "run.json").write_text("{"), "run.json: not valid JSON"),
@@ -153,6 +170,12 @@ def test_a_folder_without_results_or_without_references_is_a_clear_error(two_res
     (lambda f: (f / "episodes.csv").write_text((f / "episodes.csv").read_text().replace("metaworld,train,metaworld,0",
                                                                                         "metaworld,train,metaworld,x", 1)),
      r"episodes.csv, line 2: invalid literal for int\(\) with base 10: 'x'"),
+    (set_first("return", "inf"), "line 2: return 'inf' is not a finite number"),
+    (set_first("return", "nan"), "line 2: return 'nan' is not a finite number"),
+    (set_first("shot", "-1"), "line 2: shot -1: shots count from 1"),
+    (set_first("success", "0.5"), "line 2: success '0.5' is neither 0, 1 nor empty"),
+    (edit_rows(lambda rows: rows + rows[-1:]), "a second row for .* shot"),
+    (edit_rows(lambda rows: [r for r in rows if not (r["shot"] == "2" and r is rows[1])]), "not 1, 2, ... without gaps"),
 ])
 def test_damaged_results_are_named_errors_not_tracebacks(two_results, tmp_path, damage, message):
     folder = tmp_path / "results"

@@ -96,9 +96,11 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
                 ref: Reference | None = refs[task]
                 if ref is None:
                     continue
-                normalized = float(ref.normalize(float(row["return"])))
-                success = float(row.get("success") or "nan")  # empty for envs without a success flag
-                runs[variant][(int(row["seed"]), row["prompt_steps"])][int(row["shot"])] = normalized, success
+                episode_return, shot, success = _checked_episode(row)
+                by_shot = runs[variant][(int(row["seed"]), row["prompt_steps"])]
+                if shot in by_shot:
+                    raise ValueError(f"a second row for {variant}, seed {row['seed']}, shot {shot}")
+                by_shot[shot] = float(ref.normalize(episode_return)), success
             except (ValueError, TypeError) as error:  # a hand-edited or foreign table
                 raise VintixError(f"{episodes}, line {line}: {error}; {rewrite}") from error
             domains[variant] = _variant(f"{row['domain']} {row['split']}", row["variation"])
@@ -107,9 +109,13 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
         raise VintixError(f"{episodes}: holds no episodes; {rewrite}")
     scores, success, seeds = {}, {}, {}
     for variant, by_run in runs.items():
+        for (seed, _), by_shot in by_run.items():
+            if sorted(by_shot) != list(range(1, len(by_shot) + 1)):
+                raise VintixError(f"{episodes}: {variant}, seed {seed} has shots {sorted(by_shot)}, not 1, 2, ... "
+                                  f"without gaps; {rewrite}")
         shots = min(len(s) for s in by_run.values())
         ordered = sorted(by_run)
-        both = np.array([[by_run[r][k] for k in sorted(by_run[r])[:shots]] for r in ordered])  # [runs, shots, 2]
+        both = np.array([[by_run[r][k] for k in range(1, shots + 1)] for r in ordered])  # [runs, shots, 2]
         scores[variant], seeds[variant] = both[..., 0], [seed for seed, _ in ordered]
         if not np.isnan(both[..., 1]).any():
             success[variant] = both[..., 1]
@@ -117,6 +123,20 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     reward_input = run.get("config", {}).get("reward_input", "true")
     return Results(run.get("label") or folder.name, folder, run, scores, domains, tasks, success, seeds,
                    reward_input), notes
+
+
+def _checked_episode(row: dict[str, str]) -> tuple[float, int, float]:
+    """One row's return, shot and success flag (NaN for envs without one), or a ValueError naming
+    what a `vintix eval` table can never hold: a non-finite return, a shot below 1, a flag not 0/1."""
+    episode_return, shot = float(row["return"]), int(row["shot"])
+    success = float(row.get("success") or "nan")  # empty for envs without a success flag
+    if not np.isfinite(episode_return):
+        raise ValueError(f"return {row['return']!r} is not a finite number")
+    if shot < 1:
+        raise ValueError(f"shot {shot}: shots count from 1")
+    if not (np.isnan(success) or success in (0.0, 1.0)):
+        raise ValueError(f"success {row['success']!r} is neither 0, 1 nor empty")
+    return episode_return, shot, success
 
 
 def curve_with_ci(scores: np.ndarray) -> np.ndarray:
