@@ -3,6 +3,7 @@
 import json
 import os
 import signal
+import stat
 from dataclasses import replace
 
 import numpy as np
@@ -119,6 +120,13 @@ def test_interrupted_training_resumes_where_it_stopped(tmp_path, how):
     with pytest.raises(VintixError, match="unfinished run with other settings"):
         train_demonstrator(task, out=tmp_path, progress_bar=False,
                            recipe=replace(recipe, hyperparameters={**recipe.hyperparameters, "batch_size": 32}))
+    pickled = next(state.glob("steps-*/model.zip"))
+    pickled.chmod(pickled.stat().st_mode | stat.S_IWOTH)  # anyone could have swapped in code to unpickle
+    with pytest.raises(VintixError, match="model.zip is writable by other users; .* unpickled"):
+        train_demonstrator(task, **run)
+    with pytest.raises(VintixError, match="writable by other users"):
+        evaluate_unfinished_run(unfinished, episodes=1)
+    pickled.chmod(pickled.stat().st_mode & ~stat.S_IWOTH)
     saved_file = next(state.glob("steps-*/state.json"))  # as a vintix from before observation_dims saved it:
     saved["plan"]["recipe"].pop("observation_dims")      # a recipe field added since then takes its default
     saved["plan"]["recipe"]["stop_at_score"] = 0.5       # one that says when to stop is not matched

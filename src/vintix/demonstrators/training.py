@@ -21,15 +21,18 @@ run saves the SB3 model, its replay buffer and its VecNormalize statistics (SB3'
 under ``~/.cache/vintix/demonstrator-training``; re-running the same command continues from there.
 The episodes in progress restart and the RNG streams differ, so a resumed run is not bit-identical to
 an uninterrupted one. These are local, pickled working files; only the final weights ship, as
-safetensors.
+safetensors. Unpickling runs whatever code a file holds, so a saved state is loaded only when its
+folder and files belong to the user and nobody else can write them (`refuse_untrusted_state`).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import random
 import shutil
 import signal
+import stat
 import tempfile
 import threading
 import time
@@ -231,12 +234,14 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
     `score_checks` (those of `DemonstratorRecipe.stop_at_score` so far) are kept with it."""
     state = directory / f"{STATE_PREFIX}{model.num_timesteps:012d}"
     shutil.rmtree(state, ignore_errors=True)
-    state.mkdir(parents=True)
+    state.mkdir(parents=True, mode=0o700)
     model.save(state / "model.zip")
     if isinstance(model, OffPolicyAlgorithm):
         model.save_replay_buffer(state / "replay_buffer.pkl")
     if vec_normalize is not None:
         vec_normalize.save(str(state / "vecnormalize.pkl"))
+    for path in [state, *state.iterdir()]:  # whatever the umask: only the user may write what gets unpickled
+        path.chmod(path.stat().st_mode & ~(stat.S_IWGRP | stat.S_IWOTH))
     returns = [episode["r"] for episode in model.ep_info_buffer or ()]
     info = {"plan": plan, "num_timesteps": model.num_timesteps, "train_seconds": round(train_seconds, 1),
             "recent_return": round(float(np.mean(returns)), 1) if returns else None,
@@ -348,6 +353,25 @@ def score_as_shipped(model: BaseAlgorithm, vec_normalize: VecNormalize | None, g
     return spec.name, episode_returns(spec.name, demonstrator, episodes, seed)
 
 
+PICKLED_FILES = ("model.zip", "vecnormalize.pkl", "replay_buffer.pkl")
+"""The files of a saved state that SB3 unpickles when it loads them."""
+
+
+def refuse_untrusted_state(state: Path) -> None:
+    """Raise unless `state` and its pickled files are owned by this user and writable by nobody else:
+    another user who could write them (a cache on shared storage) could make loading run their code."""
+    for path in [state, *(state / name for name in PICKLED_FILES if (state / name).exists())]:
+        info = path.stat()
+        foreign = hasattr(os, "getuid") and info.st_uid != os.getuid()
+        if foreign or info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+            who = f"owned by user id {info.st_uid}" if foreign else "writable by other users"
+            raise VintixError(
+                f"{path} is {who}; a saved training state is unpickled on load, which runs any code in it, so "
+                f"vintix loads one only when only you can write it. If you wrote it, `chmod -R go-w {state}`; "
+                f"otherwise delete {state.parent} and train from the start"
+            )
+
+
 def evaluate_unfinished_run(run: UnfinishedRun, episodes: int, seed: int = 0) -> tuple[str, np.ndarray]:
     """(task, returns) of `episodes` deterministic episodes of the policy in `run`'s newest save, scored
     as it would ship (`score_as_shipped`; training returns include exploration)."""
@@ -355,6 +379,7 @@ def evaluate_unfinished_run(run: UnfinishedRun, episodes: int, seed: int = 0) ->
     if found is None:
         raise VintixError(f"{run.folder} holds no complete saved state to evaluate")
     state = found[0]
+    refuse_untrusted_state(state)
     model = ALGORITHMS[run.algorithm].load(state / "model.zip", device="cpu")
     vec_normalize = None
     if (state / "vecnormalize.pkl").is_file():
@@ -459,6 +484,8 @@ def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume:
                     ) -> tuple[BaseAlgorithm, VecNormalize | None]:
     """The SB3 model (and its VecNormalize wrapper, if the recipe has one): fresh, or loaded from `resume`."""
     vec_normalize = None
+    if resume is not None:
+        refuse_untrusted_state(resume)
     if recipe.normalize_observations:
         if resume is not None:
             vec_normalize = VecNormalize.load(str(resume / "vecnormalize.pkl"), venv)
