@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import signal
 import stat
 from dataclasses import replace
@@ -291,6 +292,37 @@ def test_every_shipped_demonstrator_records_its_command_and_score():
         task = meta["command"].split()[4]
         assert (get_task(task).group, meta["group"]) == (meta_path.stem, meta_path.stem)
         assert {(task, "demonstrator"), (task, "random")} <= scored, f"{task}: run vintix demonstrator eval"
+
+
+def rewrite_json(name, change):
+    """A damage to the weights folder: `change(metadata) -> metadata` applied to `name`.json."""
+    def damage(folder):
+        path = folder / f"{name}.json"
+        path.write_text(json.dumps(change(json.loads(path.read_text()))))
+    return damage
+
+
+@pytest.mark.parametrize(("damage", "message"), [
+    (lambda f: (f / "mujoco-reacher.json").write_text("{"), "mujoco-reacher.json: not valid JSON"),
+    (lambda f: (f / "mujoco-reacher.json").write_text("[]"), "not a demonstrator's metadata"),
+    (rewrite_json("mujoco-reacher", lambda m: {**m, "algorithm": "DQN"}), "algorithm 'DQN' is not one of PPO, SAC"),
+    (rewrite_json("mujoco-reacher", lambda m: {**m, "policy_kwargs": {"net_arch": [10**9]}}),
+     r"net_arch \[1000000000\] has layer widths that no tensor"),
+    (lambda f: (f / "mujoco-reacher.safetensors").write_bytes((f / "mujoco-reacher.safetensors").read_bytes()[:100]),
+     "mujoco-reacher.safetensors: not a readable safetensors file"),
+    (lambda f: (f / "mujoco-reacher.safetensors").write_bytes((f / "mujoco-pusher.safetensors").read_bytes()),
+     "does not fit the .* policy that mujoco-reacher.json describes"),
+])
+def test_damaged_demonstrator_weights_are_named_errors(tmp_path, damage, message):
+    for name in ("mujoco-reacher", "mujoco-pusher"):
+        for suffix in (".json", ".safetensors"):
+            shutil.copy(shipped_weights_dir() / f"{name}{suffix}", tmp_path)
+    damage(tmp_path)
+    with pytest.raises(VintixError, match=message):
+        load_demonstrator("Reacher-v5", tmp_path)
+    result = CliRunner().invoke(app, ["demonstrator", "eval", "--task", "Reacher-v5", "--weights", str(tmp_path),
+                                      "--episodes", "1", "--out", str(tmp_path / "scores.csv")])
+    assert result.exit_code == 2 and "Traceback" not in result.output, result.output
 
 
 def test_task_without_shipped_weights_names_the_command_that_trains_them(without_shipped_weights):

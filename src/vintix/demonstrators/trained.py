@@ -20,6 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch
+from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -70,6 +71,43 @@ def save_trained_policy(model: BaseAlgorithm, vec_normalize: VecNormalize | None
     return tensors_path
 
 
+_RESAVE = "save the pair again with `vintix demonstrator train`, or point --weights at a folder of intact ones"
+
+
+def _read_weights(tensors_path: Path, meta_path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
+    """A demonstrator's metadata and tensors, or a named error for a damaged or foreign pair. Layer widths
+    in the metadata are checked against the tensors before SB3 builds anything: a width that no tensor
+    has cannot load, and an absurd one would exhaust memory building the policy."""
+    try:
+        metadata = json.loads(meta_path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise VintixError(f"{meta_path}: not valid JSON ({error}); {_RESAVE}") from None
+    if not isinstance(metadata, dict) or not isinstance(metadata.get("policy_kwargs"), dict):
+        raise VintixError(f"{meta_path}: not a demonstrator's metadata (a JSON object with 'algorithm' and "
+                          f"'policy_kwargs'); {_RESAVE}")
+    if metadata.get("algorithm") not in ALGORITHMS:
+        raise VintixError(f"{meta_path}: algorithm {metadata.get('algorithm')!r} is not one of "
+                          f"{', '.join(ALGORITHMS)}; {_RESAVE}")
+    try:
+        tensors = load_file(str(tensors_path))
+    except (SafetensorError, OSError) as error:
+        raise VintixError(f"{tensors_path}: not a readable safetensors file ({error}); {_RESAVE}") from None
+    widest = max((max(t.shape, default=1) for t in tensors.values()), default=0)
+    widths = _layer_widths(metadata["policy_kwargs"].get("net_arch", []))
+    if any(not isinstance(w, int) or not 0 < w <= widest for w in widths):
+        raise VintixError(f"{meta_path}: net_arch {metadata['policy_kwargs']['net_arch']} has layer widths that "
+                          f"no tensor of {tensors_path.name} has (widest {widest}); the pair does not belong "
+                          f"together; {_RESAVE}")
+    return metadata, tensors
+
+
+def _layer_widths(net_arch: object) -> list[object]:
+    """Every layer width in an SB3 `net_arch` (a list of widths, or a dict of such lists per network)."""
+    if isinstance(net_arch, dict):
+        return [w for widths in net_arch.values() for w in _layer_widths(widths)]
+    return list(net_arch) if isinstance(net_arch, list) else [net_arch]
+
+
 class TrainedDemonstrator:
     """A trained SB3 policy acting deterministically on a batch of observations."""
 
@@ -81,8 +119,7 @@ class TrainedDemonstrator:
                 f"train one with `vintix demonstrator train --task {spec.name}` (see demonstrators/training.py "
                 "for its budget), or collect a task that has one (`vintix demonstrator list`)."
             )
-        self.metadata = json.loads(meta_path.read_text())
-        tensors = load_file(str(tensors_path))
+        self.metadata, tensors = _read_weights(tensors_path, meta_path)
         env = make_env(spec.name)
         self.observation_dims = int(self.metadata.get("observation_dims", 0))
         observation_space, action_space = observation_view(env.observation_space, self.observation_dims), env.action_space
@@ -92,7 +129,11 @@ class TrainedDemonstrator:
             observation_space, action_space, lr_schedule=lambda _: 0.0, **self.metadata["policy_kwargs"]
         )
         self.obs_mean, self.obs_var = tensors.pop(OBS_MEAN, None), tensors.pop(OBS_VAR, None)
-        _inference_module(self.policy).load_state_dict(tensors)
+        try:
+            _inference_module(self.policy).load_state_dict(tensors)
+        except RuntimeError as error:  # missing, unexpected or misshapen tensors
+            raise VintixError(f"{tensors_path} does not fit the {self.metadata['algorithm']} policy that {meta_path.name} "
+                              f"describes for {spec.name!r}: {error}; {_RESAVE}") from None
         self.policy.set_training_mode(False)
         modules = deterministic_actor(self.policy)
         self._mlp = None if modules is None else NumpyMlp.from_modules(modules)
