@@ -227,6 +227,8 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
     ("model_overrides={n_heads: 0}", "model_overrides: sizes must be >= 1 .*n_heads=0"),
     ("model_overrides={mlp_dim: big}", "ModelConfig.mlp_dim must be int, got 'big'"),
     ("select_metric=wins", "select_metric must be one of 'score', 'success', got 'wins'"),
+    ("lr=!!python/object/apply:os.system [echo]", "--set 'lr=!!python/object.*': the value is not plain YAML"),
+    ("tasks=[reach-v3", "--set 'tasks=\\[reach-v3': the value is not plain YAML"),
 ])
 def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_path, setting, message):
     result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),

@@ -182,11 +182,19 @@ class TrainConfig:
         return self.window_len if self.window_len is not None else self.model_config().context_len
 
 
+_SET_HINT = ("(--set values are read as YAML: --set max_steps=500, --set 'tasks=[reach-v3, push-v3]', "
+             "--set model_overrides={mask_reward: true})")
+
+
 def _parse_override(item: str) -> tuple[str, Any]:
     if "=" not in item:
         raise ConfigError(f"--set expects field=value, got {item!r}")
     key, value = item.split("=", 1)
-    return key.strip(), yaml.safe_load(value)
+    try:
+        return key.strip(), yaml.safe_load(value)
+    except yaml.YAMLError as error:  # a tag such as !!python/object, or broken YAML
+        problem = " ".join(str(error).split())
+        raise ConfigError(f"--set {item!r}: the value is not plain YAML ({problem}) {_SET_HINT}") from None
 
 
 def shipped_configs() -> list[str]:
@@ -225,5 +233,4 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
     except ConfigError as error:
         if not settings:
             raise
-        raise ConfigError(f"{error} (--set values are read as YAML: --set max_steps=500, "
-                          "--set 'tasks=[reach-v3, push-v3]', --set model_overrides={mask_reward: true})") from error
+        raise ConfigError(f"{error} {_SET_HINT}") from error
