@@ -3,6 +3,8 @@ tasks, and clear errors for inputs it cannot take."""
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 import torch
@@ -132,7 +134,59 @@ def test_wrong_observation_dim_or_non_finite_input_is_a_clear_error():
     with pytest.raises(AgentInputError, match="previous reward contains NaN or inf"):
         agent.act([np.zeros(39), np.zeros(4)], [0.0, np.inf], [False, False])
     # a reward at an episode start is ignored, whatever it is
-    assert len(agent.act([np.zeros(39), np.zeros(4)], [np.nan, 0.0], [True, False])) == 2
+    assert len(agent.act([np.zeros(39), np.zeros(4)], [np.nan, 0.0], [True, True])) == 2
+
+
+@pytest.mark.parametrize(("observation", "reward", "start", "message"), [
+    (np.full(39, "1.5"), 0.0, True, "observation of env 0 must be real numbers, got <U3"),
+    (np.zeros(39) + 1j, 0.0, True, "observation of env 0 must be real numbers, got complex128"),
+    (np.zeros(39), None, False, "prev_rewards must be real numbers, got object"),
+    (np.zeros(39), 0.0, "yes", "episode_starts must be booleans"),
+    (np.zeros(39), 0.0, 2, r"episode_starts must be booleans \(or 0/1\), got \[2\]"),
+])
+def test_text_complex_or_non_flag_inputs_are_refused_not_converted(observation, reward, start, message):
+    agent = Agent(tiny_model())
+    agent.reset(["reach-v3"])
+    with pytest.raises(AgentInputError, match=message):
+        agent.act([observation], [reward], [start])
+
+
+def test_an_empty_contexts_first_step_must_be_an_episode_start():
+    agent = Agent(tiny_model())
+    agent.reset(["reach-v3", "reach-v3"])
+    with pytest.raises(AgentInputError, match=r"env\(s\) \[1\]: the first step of an empty context must be an episode start"):
+        agent.act([np.zeros(39)] * 2, [0.0, 0.0], [True, False])
+    agent.act([np.zeros(39)] * 2, [0.0, 0.0], [True, True])
+    agent.act([np.zeros(39)] * 2, [1.0, 0.0], [False, True])  # later steps: any mix
+
+
+def test_keep_takes_distinct_indices_not_a_mask():
+    agent = Agent(tiny_model())
+    agent.reset(["reach-v3", "push-v3", "reach-v3"])
+    with pytest.raises(AgentInputError, match=r"not a mask.*np.flatnonzero\(mask\)"):
+        agent.keep([True, False, True])
+    with pytest.raises(AgentInputError, match="an index twice"):
+        agent.keep([0, 0])
+    with pytest.raises(AgentInputError, match="indices in 0..2"):
+        agent.keep([0.5])
+    agent.keep(np.array([2, 0]))
+    assert [t.task for t in agent.tasks] == ["reach-v3", "reach-v3"]
+
+
+def test_one_agent_stepped_from_two_threads_at_once_is_a_named_error():
+    agent = Agent(tiny_model())
+    agent.reset(["reach-v3"])
+    inside, release = threading.Event(), threading.Event()
+    hook = agent.model.ln_f.register_forward_hook(lambda *_: (inside.set(), release.wait(10)) and None)
+    first = threading.Thread(target=agent.act, args=([np.zeros(39)], [0.0], [True]))
+    first.start()
+    assert inside.wait(10)  # the first thread is inside act, in the model's forward
+    with pytest.raises(AgentStateError, match="agent.act while another thread is inside this agent"):
+        agent.act([np.zeros(39)], [0.0], [True])
+    release.set()
+    first.join()
+    hook.remove()
+    assert agent.steps == 1  # only the first thread's step went in
 
 
 def test_misuse_of_the_agent_is_a_named_error():
@@ -146,7 +200,7 @@ def test_misuse_of_the_agent_is_a_named_error():
     with pytest.raises(AgentInputError, match="2 tasks but 1 action spaces"):
         agent.reset(["reach-v3", "push-v3"], [UNBOUNDED[4]])
     agent.reset(["reach-v3"], [UNBOUNDED[4]])
-    with pytest.raises(AgentInputError, match="prev_rewards must be numbers"):
+    with pytest.raises(AgentInputError, match="prev_rewards must be real numbers"):
         agent.act([np.zeros(39)], ["lots"], [False])
     window = agent.model.config.context_len
     with pytest.raises(AgentInputError, match=f"a prompt of {window + 1} steps after 0 does not fit the model's "

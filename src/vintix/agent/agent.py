@@ -13,7 +13,9 @@ normalizations, each task weighted equally. `AgentTask.norm_source` says which o
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
 
@@ -129,11 +131,19 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
 
 
 def _numbers(what: str, values: object, dtype: type) -> np.ndarray:
-    """`values` as a numeric array; text or ragged lists are an AgentInputError naming `what`."""
+    """`values` as an array of `dtype`; text (even "1.5"), complex numbers, None or ragged lists are an
+    AgentInputError naming `what`, and so are flags other than 0/1 where `dtype` is bool."""
     try:
-        return np.asarray(values, dtype=dtype)
+        array = np.asarray(values)
     except (TypeError, ValueError) as error:
         raise AgentInputError(f"{what} must be numbers: {error}") from error
+    kinds = "biu" if dtype is bool else "biuf"  # numpy's bool, int, unsigned, float kinds
+    if array.dtype.kind not in kinds:
+        wanted = "booleans (or 0/1)" if dtype is bool else "real numbers"
+        raise AgentInputError(f"{what} must be {wanted}, got {array.dtype} values: {values!r}"[:300])
+    if dtype is bool and not np.isin(array, (0, 1)).all():
+        raise AgentInputError(f"{what} must be booleans (or 0/1), got {values!r}"[:300])
+    return array.astype(dtype)
 
 
 def _registry_dims(task: str) -> tuple[int, int] | None:
@@ -190,6 +200,7 @@ class Agent:
         self.cache: KVCache | None = None
         self._groups: dict[str, _GroupBatch] = {}
         self._prev_action: dict[str, torch.Tensor] = {}
+        self._busy = threading.Lock()
 
     @classmethod
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
@@ -204,6 +215,18 @@ class Agent:
         except CheckpointError as error:
             raise CheckpointError(f"{error}{intact_alternative_hint(resolved)}") from error
 
+    @contextmanager
+    def _exclusive(self, call: str) -> Iterator[None]:
+        """One call at a time: the context is one sequence, and two threads stepping it at once would
+        interleave their tokens (or fail mid-write) instead of raising a clear error."""
+        if not self._busy.acquire(blocking=False):
+            raise AgentStateError(f"agent.{call} while another thread is inside this agent; an Agent holds one "
+                                  "context: give each thread its own Agent (they can share the model)")
+        try:
+            yield
+        finally:
+            self._busy.release()
+
     @property
     def device(self) -> torch.device:
         return self.model.ln_f.weight.device
@@ -216,6 +239,10 @@ class Agent:
     def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None = None) -> None:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
         `action_spaces` (default: each task's registry env's action space)."""
+        with self._exclusive("reset"):
+            self._reset(tasks, action_spaces)
+
+    def _reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None) -> None:
         if not tasks:
             raise AgentInputError("reset needs at least one task")
         if action_spaces is not None and len(action_spaces) != len(tasks):
@@ -237,11 +264,19 @@ class Agent:
         """Go on with only the envs at batch indices `envs` (they become envs 0, 1, ... in that
         order); the others are dropped with their context. The kept envs act exactly as they would
         have: this lets a batch shrink as its envs finish, instead of stepping them to no purpose."""
+        with self._exclusive("keep"):
+            self._keep(list(envs))
+
+    def _keep(self, envs: list[int]) -> None:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.keep(...)")
-        envs = list(envs)
-        if not envs or not all(0 <= i < len(self.tasks) for i in envs):
+        if any(isinstance(i, (bool, np.bool_)) for i in envs):
+            raise AgentInputError(f"keep takes env indices, not a mask, got {envs}"[:200] + "; for a mask, "
+                                  "keep(np.flatnonzero(mask))")
+        if not envs or not all(isinstance(i, (int, np.integer)) and 0 <= i < len(self.tasks) for i in envs):
             raise AgentInputError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
+        if len(set(envs)) != len(envs):
+            raise AgentInputError(f"keep got an index twice ({envs}); each env's context can be kept once")
         # Each env's previous action lives in its group's rows; gather them per old env index first.
         previous: dict[int, torch.Tensor] = {}
         for group, batch in self._groups.items():
@@ -292,6 +327,13 @@ class Agent:
         ignored where ``episode_starts[i]`` (the first observation of an episode). A NaN/inf action
         from the model raises `AgentOutputError`: every action returned is finite and within bounds.
         """
+        with self._exclusive("act"):
+            return self._act(obs, prev_rewards, episode_starts)
+
+    def _act(
+        self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
+        episode_starts: Sequence[bool] | np.ndarray,
+    ) -> list[np.ndarray]:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
@@ -306,6 +348,12 @@ class Agent:
         for i, task in enumerate(self.tasks):
             self._check("observation", i, observations[i], (self.model.groups[task.group].obs_dim,))
             self._check("previous reward", i, rewards[i : i + 1], (1,))
+        if self.cache.length == 0 and not starts.all():
+            raise AgentInputError(
+                f"env(s) {np.flatnonzero(~starts).tolist()}: the first step of an empty context must be an episode "
+                "start (episode_starts True): there is no previous action or reward to feed. To go on from stored "
+                "steps, agent.prompt(...) them first"
+            )
         prev_actions = {g: a.unsqueeze(1) for g, a in self._prev_action.items()}
         tokens = self._tokens([o[None] for o in observations], prev_actions, rewards[:, None], starts[:, None])
         hidden = cached_backbone(self.model, tokens, self.cache)[:, -1]
@@ -334,6 +382,13 @@ class Agent:
     ) -> None:
         """Feed stored steps (rows of a learning history, one array ``[T, ...]`` per env, the same T
         for every env and at most the window) as context before acting: a prompted, not cold, start."""
+        with self._exclusive("prompt"):
+            self._prompt(observations, actions, rewards, step_nums)
+
+    def _prompt(
+        self, observations: Sequence[np.ndarray], actions: Sequence[np.ndarray], rewards: Sequence[np.ndarray],
+        step_nums: Sequence[np.ndarray],
+    ) -> None:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.prompt(...)")
         steps = len(step_nums[0])
