@@ -17,7 +17,7 @@ $(INSTALLED): requirements.lock pyproject.toml
 install: $(INSTALLED)
 
 # The reward-ablation test on the shipped models, cold start on goals and seeds training never used
-# (README: "In-context RL"): each plays with the true rewards fed back, then with zeros; scores and
+# (README, "In-context RL"; docs/in-context-rl.md): each plays with the true rewards fed back, then with zeros; scores and
 # success always come from the true returns. point-goal (the toy hidden-goal task) shows rewards doing
 # the work; cpu-suite (Meta-World, Industrial Benchmark, MuJoCo) shows a model whose gain over shots
 # does not come from rewards. Per-shot tables of score and success rate, then a report with the

@@ -7,7 +7,8 @@ and CrossQ (its JAX sibling; `pip install sbx-rl`), installed into the same envi
 vintix dependency, and trainers that are not installed are skipped. CrossQ runs with its library's
 default critics and, as `CrossQ 256`, with critics as wide as SAC's. Each learns
 `--warmup` steps first (random actions, then the first updates and JAX's compilation), and only the
-next `--steps` are timed. The README's table of trainer speeds comes from this script.
+next `--steps` are timed. The table of trainer speeds in docs/demonstrators.md comes from this
+script.
 """
 
 from __future__ import annotations

@@ -1,7 +1,13 @@
 """Build src/vintix/tasks/paper_tasks.csv from the paper's appendix tables.
 
 Run once when the reference tables change:
-    python scripts/build_task_table.py ../shared/reference src/vintix/tasks/paper_tasks.csv
+    python scripts/build_task_table.py REFERENCE_DIR src/vintix/tasks/paper_tasks.csv
+REFERENCE_DIR holds two CSV files transcribed by hand from the paper's appendix, which the repository
+does not ship (the table built from them is what it ships):
+    paper_dataset_metadata.csv  domain, task, obs_dim, act_dim, reward_scale, trajectory_length,
+                                n_trajectories, mean_episode_length (the dataset table, one row per task)
+    paper_task_scores.csv       task, random_mean, random_std, expert_mean, expert_std, vintix_norm_mean,
+                                vintix_norm_std (the 'Task-Level Performance' tables)
 The package reads only the CSV it ships; nothing reads the reference folder at run time.
 """
 

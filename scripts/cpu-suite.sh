@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Rebuild the shipped cpu-suite model and its results from nothing, on a CPU (README: "Rebuild").
+# Rebuild the shipped cpu-suite model and its results from nothing, on a CPU (docs/results.md: "Rebuild the shipped model from nothing").
 #   scripts/cpu-suite.sh [WORK_DIR]      (default: cpu-suite/; every step resumes or is skipped once done)
 # Steps: collect the suite (AD data) and its expert version (ED data); train AD, ED and AD without
 # rewards the same way, each keeping its best checkpoint by cold-start score on unseen seeds/goals;

@@ -12,7 +12,7 @@ Trains the task's recipe (`vintix demonstrator train`'s), or `--recipe-of` anoth
 episodes every `--every` steps and, every 2.5 % of the recipe's budget, the deterministic score check of
 `stop_at_score` (`Infinity`: check, never stop). `--steps` interrupts the run there, saved: re-run to
 resume. The run lives under `--out`, apart from the recipe's own run, and writes its weights there when
-it ends. The README's Humanoid comparison comes from these callbacks (first run from an ad-hoc copy).
+it ends. The Humanoid comparison in docs/demonstrators.md comes from these callbacks (first run from an ad-hoc copy).
 """
 
 from __future__ import annotations

@@ -12,6 +12,13 @@ from vintix.cli import app
 runner = CliRunner()
 
 
+def test_version_prints_the_installed_package_version():
+    from importlib.metadata import version
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.output.strip() == f"vintix {version('vintix')}"
+
+
 def test_tasks_lists_the_papers_102_and_the_toy_task():
     result = runner.invoke(app, ["tasks"])
     assert result.exit_code == 0

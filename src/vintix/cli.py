@@ -38,7 +38,8 @@ class _Commands(TyperGroup):
 
 app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True,
                   cls=_Commands)
-data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one).", no_args_is_help=True)
+data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one; format: docs/data-format.md).",
+                        no_args_is_help=True)
 app.add_typer(data_app, name="data")
 demonstrator_app = typer.Typer(help="Train and score the experts that learning histories are distilled from.",
                                no_args_is_help=True)
@@ -56,6 +57,28 @@ def _fail(error: Exception) -> typer.Exit:
     # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup.
     console.print(f"[red]error:[/red] {escape(str(error))}")
     return typer.Exit(code=2)
+
+
+def _print_version(value: bool) -> None:
+    """`vintix --version`: the installed package's version (its metadata), then exit."""
+    if not value:
+        return
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        installed = version("vintix")
+    except PackageNotFoundError:  # imported from a source tree that was never installed
+        from vintix import __version__ as installed
+    typer.echo(f"vintix {installed}")
+    raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[Optional[bool], typer.Option("--version", callback=_print_version, is_eager=True,
+                                                    help="print the installed vintix version and exit")] = None,
+) -> None:
+    pass
 
 
 def _runnable_tasks(selectors: list[str]) -> list[TaskSpec]:
@@ -440,7 +463,8 @@ def registry_dims(task_name: str) -> tuple[int, int] | None:
 
 @data_app.command("validate")
 def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")]) -> None:
-    """Check a dataset's structure, dtypes, dims (vs the task registry), step numbers and values."""
+    """Check a dataset's structure, dtypes, dims (vs the task registry), step numbers and values against the
+    format specified in docs/data-format.md."""
     from vintix.data import task_dirs, validate_task
     from vintix.errors import DatasetError
 
@@ -449,12 +473,13 @@ def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root
     except DatasetError as error:
         raise _fail(error)
     if not folders:
-        raise _fail(DatasetError(root, "no <domain>/<task_dir>/ folders found; point to the dataset root"))
+        raise _fail(DatasetError(root, "no <domain>/<task_dir>/ folders found; point to the dataset root "
+                                       "(layout: docs/data-format.md)"))
     problems = [p for folder in track(folders, description="validating") for p in validate_task(folder, registry_dims)]
     for problem in problems:
         console.print(f"[red]✗[/red] {problem}", highlight=False)
     if problems:
-        console.print(f"{len(problems)} problem(s) in {root}")
+        console.print(f"{len(problems)} problem(s) in {root}; the format is specified in docs/data-format.md")
         raise typer.Exit(code=1)
     console.print(f"[green]✓[/green] {len(folders)} task folder(s) in {root} follow the format")
 
@@ -703,7 +728,8 @@ def bench_infer(
 @app.command("eval")
 def eval_command(
     checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (model.json + model.safetensors), a training "
-                                             "run (its best checkpoint, else its newest), or a shipped model: cpu-suite")],
+                                             "run (its best checkpoint, else its newest), or a shipped model: "
+                                             "cpu-suite or point-goal")],
     tasks: Annotated[list[str], typer.Option(help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
     shots: Annotated[int, typer.Option(help="episodes per run")] = 50,

@@ -1,5 +1,7 @@
 """Learning histories in the official Vintix on-disk format (HDF5 + one JSON per task).
 
+The specification, with every field, dtype, attribute and rule: docs/data-format.md.
+
 Layout (compatible with the released Vintix dataset)::
 
     <root>/<domain>/<task_dir>/<task_dir>.json   # task_name, observation_shape.proprio=[d], action_dim, action_type
@@ -542,7 +544,8 @@ class LearningHistory:
         if demonstrator_action:
             if self.layout.demonstrator_action is None:
                 raise DatasetError(self.path, "stores no demonstrator actions (none of the datasets "
-                                   f"{list(DEMONSTRATOR_ACTION_SPELLINGS)}); collect with vintix >= 0.2 to get them")
+                                   f"{list(DEMONSTRATOR_ACTION_SPELLINGS)}); re-collect with `vintix collect`, "
+                                   "which stores them")
             fields[DEMONSTRATOR_ACTION] = self.layout.demonstrator_action
         first = bisect_right([g.start for g in groups], start) - 1
         # An empty range still reads a 0-row slice of one group so the result has the right shapes.

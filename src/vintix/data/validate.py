@@ -2,7 +2,8 @@
 
 Validation reports every problem it finds instead of stopping at the first, one message per kind
 of problem per file, each naming the fix. It reads histories one group (≤ 10,000 rows) at a time,
-so memory stays small however large the dataset is.
+so memory stays small however large the dataset is. The format it checks is specified in
+docs/data-format.md.
 """
 
 from __future__ import annotations
@@ -57,7 +58,8 @@ def validate_dataset(root: PathLike, expected_dims: ExpectedDims | None = None) 
     except DatasetError as err:
         return [Problem(err.path, err.problem)]
     if not folders:
-        return [Problem(Path(root), "no <domain>/<task_dir>/ folders found; point to the dataset root")]
+        return [Problem(Path(root), "no <domain>/<task_dir>/ folders found; point to the dataset root "
+                        "(layout: docs/data-format.md)")]
     return [problem for folder in folders for problem in validate_task(folder, expected_dims)]
 
 

@@ -2,7 +2,7 @@
 
 A goal-aware expert's noisy actions leak the goal: a model trained on its histories can copy the
 goal out of the previous actions and never needs a reward, and at test time its own actions carry
-no such information (DESIGN §6). This demonstrator knows only what the rewards so far revealed.
+no such information. This demonstrator knows only what the rewards so far revealed.
 
 Posterior sampling over goals (Thompson sampling, as in PSRL): each env keeps candidate goals drawn
 from the task's goal prior, each weighted by how well it explains every reward seen so far (the

@@ -120,7 +120,7 @@ _IB_SETPOINTS = tuple(t.name for t in list_tasks(domain="industrial_benchmark"))
 # trained: stopped at 0.85 mid-schedule (4M steps, a 10-episode check of 0.87), HumanoidStandup's policy
 # scored 0.76 over eval's 20 episodes, as a few never stood up. The checks stay, as the run's learning curve;
 # 1.0 stops only at the expert's own level. Ant reached it (1.01) at 8.75M steps; HumanoidStandup, after the
-# whole 10M, scored 0.78 over eval's 20 episodes and 0.87 over 100: an episode stands up or not (README).
+# whole 10M, scored 0.78 over eval's 20 episodes and 0.87 over 100: an episode stands up or not (docs/demonstrators.md).
 _SAMPLE_FACTORY_PPO = DemonstratorRecipe(
     "PPO", 10_000_000,
     {"n_steps": 64, "batch_size": 1024, "n_epochs": 2, "learning_rate": 0.00295, "max_grad_norm": 3.5,
@@ -146,7 +146,7 @@ RECIPES: dict[str, DemonstratorRecipe] = {
     # On Ant-v5's 78 contact forces, TD3 with the RL Zoo's settings learned 2-3x slower than on its 27 joint
     # positions and velocities alone (seed 1, mean training return at 100k / 174k steps: 228 / about 420
     # against 600 / 1,232), then settled at 0.45-0.50 of the paper's expert from 350k to 560k steps (3.2
-    # CPU-hours). Sample Factory's PPO on the 27 read 0.77 after 2M steps, 9 minutes (README).
+    # CPU-hours). Sample Factory's PPO on the 27 does better (docs/demonstrators.md).
     "mujoco-ant": replace(_SAMPLE_FACTORY_PPO, observation_dims=27),
     "mujoco-humanoidstandup": _SAMPLE_FACTORY_PPO,
     "industrial_benchmark": DemonstratorRecipe(

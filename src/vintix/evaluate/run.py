@@ -1,4 +1,4 @@
-"""Many-shot in-context RL (paper §3, DESIGN §8): every (task, seed) run is one env, all stepped in
+"""Many-shot in-context RL (paper §3; docs/evaluation.md): every (task, seed) run is one env, all stepped in
 lockstep through one batched `Agent`, from an empty context (cold start) or after a prompt taken
 from the start of a stored learning history.
 

@@ -103,8 +103,8 @@ class ModelConfig:
         if self.reward_encoder not in REWARD_ENCODERS:
             raise ModelConfigError(f"reward_encoder must be one of {list(REWARD_ENCODERS)}, got {self.reward_encoder!r}")
 
-# tiny: ~0.8M backbone parameters, the size that learned in context on Meta-World within 15 CPU
-#   minutes (DESIGN §6); a 1024-step window holds 10 Meta-World or 4 Industrial Benchmark episodes.
+# tiny: ~0.8M backbone parameters, small enough to train on a laptop CPU in tens of minutes (the
+#   shipped cpu-suite model); a 1024-step window holds 10 Meta-World or 4 Industrial Benchmark episodes.
 #   Measured: ~4k training tokens/s on 2 cores (one group, fp32), ~14M tokens an hour; a 512-step
 #   window roughly doubles that, since attention dominates at this width.
 # small: a single-GPU model (~14M backbone parameters) with a 2048-step window.

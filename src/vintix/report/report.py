@@ -1,7 +1,7 @@
 """`vintix report`: a markdown report with PNG figures, regenerated from `vintix eval` result folders.
 
 Scores are renormalized from the raw episode returns with the chosen reference table, so a report
-made after our demonstrators are scored uses them even for older results. Aggregation (DESIGN §8):
+made after our demonstrators are scored uses them even for older results. Aggregation:
 a task's curve is the IQM over its runs (seeds) at each shot, a domain's the IQM over all runs of
 its tasks, each with a percentile-bootstrap 95 % CI over runs; a task's converged score is its best
 k-shot plateau (the best mean over k consecutive shots of its mean curve), the paper's "performance

@@ -1,6 +1,6 @@
 """Meta-World tasks in the ML45 setting: goal hidden, one goal per env, short episodes.
 
-Protocol (DESIGN §2): an env keeps one hidden goal (object and target positions, metaworld's
+Protocol (ML45 meta-RL; docs/tasks.md): an env keeps one hidden goal (object and target positions, metaworld's
 "rand_vec") for its whole life, drawn reproducibly from its seed, so an agent can infer the goal from
 rewards across episodes, as in meta-RL. `resample_goal_each_episode=True` draws a new goal at every
 reset instead, like the official Vintix release's wrapper.

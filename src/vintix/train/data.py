@@ -229,7 +229,7 @@ class TrainingData:
     groups: list[GroupSpec]
     held_out: list[TaskNorm] = field(default_factory=list)
     """Statistics of the dataset's other tasks of the same groups, never trained on: a held-out task
-    then reaches the model normalized like the tasks it was trained on (DESIGN §6)."""
+    then reaches the model normalized like the tasks it was trained on."""
 
     @property
     def task_norms(self) -> list[TaskNorm]:

@@ -1,4 +1,4 @@
-"""Algorithm Distillation training: next-action MSE over multi-episode windows (paper §2.3, DESIGN §6).
+"""Algorithm Distillation training: next-action MSE over multi-episode windows (paper §2.3; docs/training.md).
 
 One loop serves one CPU, one GPU and ``torchrun`` DDP (gloo on CPU, nccl on GPU; rank 0 is global
 ``RANK`` 0). Steps, the warm-up and the cosine all count *optimizer* steps; gradient accumulation
@@ -165,7 +165,7 @@ def batch_to(batch: Batch, device: torch.device) -> Batch:
 
 
 def precision_context(device: torch.device) -> contextlib.AbstractContextManager:
-    """bf16 autocast on CUDA; plain fp32 on CPU, where bf16 matmuls are 10-100x slower (DESIGN §5)."""
+    """bf16 autocast on CUDA; plain fp32 on CPU, where bf16 matmuls are 10-100x slower."""
     if device.type == "cuda":
         return torch.autocast("cuda", dtype=torch.bfloat16)
     return contextlib.nullcontext()
@@ -271,8 +271,8 @@ class Trainer:
     ``callbacks`` are ``(every, fn)`` pairs: ``fn(model, step)`` runs on rank 0 after every
     ``every``-th optimizer step with the model in eval mode, inside a forked RNG so it cannot
     change the rest of the run. ``scorer`` runs the same way every ``config.select_every`` steps on
-    the selection tasks; a score above the best so far replaces ``checkpoints/best`` (DESIGN §6:
-    training loss does not tell when a model has in-context skill), and the score and its reward-use
+    the selection tasks; a score above the best so far replaces ``checkpoints/best`` (training
+    loss does not tell when a model has in-context skill), and the score and its reward-use
     gap go to the log.
     """
 
