@@ -3,6 +3,7 @@ tasks, and clear errors for inputs it cannot take."""
 
 from __future__ import annotations
 
+import json
 import threading
 
 import numpy as np
@@ -14,6 +15,7 @@ import vintix
 from inference_model import one_torch_thread, random_inputs, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent, AgentInputError, AgentOutputError, AgentStateError
 from vintix.errors import UnknownTaskError
+from vintix.memory import OutOfMemoryError
 from vintix.model import save_pretrained
 
 UNBOUNDED = {dim: Box(-np.inf, np.inf, (dim,)) for dim in (1, 4)}
@@ -221,3 +223,13 @@ def test_a_gaussian_policy_samples_reproducibly_from_its_seed():
     first = run(0)
     np.testing.assert_array_equal(first, run(0))  # reset restarts the draws
     assert not np.allclose(first, run(1))
+
+
+def test_a_context_or_batch_beyond_the_machines_memory_is_refused_before_allocating(tmp_path):
+    model = tiny_model()
+    save_pretrained(model, tmp_path)
+    meta = json.loads((tmp_path / "model.json").read_text())
+    (tmp_path / "model.json").write_text(json.dumps({**meta, "config": {**meta["config"], "context_len": 10**9}}))
+    agent = Agent.from_pretrained(tmp_path)  # the weights do not depend on the context's length
+    with pytest.raises(OutOfMemoryError, match="a KV cache for 1 envs over a 1000000000-step context needs"):
+        agent.reset(["reach-v3"])

@@ -7,6 +7,7 @@ import torch
 
 from test_model import make_batch, make_model
 from vintix.errors import DeviceError
+from vintix.memory import OutOfMemoryError
 from vintix.model import CheckpointError, load_pretrained, read_metadata, save_pretrained
 
 
@@ -77,3 +78,11 @@ def test_a_device_this_machine_lacks_is_named_before_loading(tmp_path):
     save_pretrained(make_model(), tmp_path)
     with pytest.raises(DeviceError, match="device 'tpu'"):
         load_pretrained(tmp_path, "tpu")
+
+
+def test_a_model_json_that_asks_for_more_memory_than_the_machine_has_is_refused_before_allocating(tmp_path):
+    save_pretrained(make_model(), tmp_path)
+    meta = json.loads((tmp_path / "model.json").read_text())
+    (tmp_path / "model.json").write_text(json.dumps({**meta, "config": {**meta["config"], "mlp_dim": 10**9}}))
+    with pytest.raises(OutOfMemoryError, match="the model this checkpoint describes needs [0-9,.]+ GiB; this machine has"):
+        load_pretrained(tmp_path)

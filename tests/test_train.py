@@ -239,6 +239,13 @@ def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_
     assert not (tmp_path / "run").exists()
 
 
+def test_a_model_too_large_for_the_machine_is_refused_before_allocating(metaworld_data, tmp_path):
+    result = CliRunner().invoke(app, ["train", "--data", str(metaworld_data), "--out", str(tmp_path / "run"),
+                                      "--set", "model_overrides={mlp_dim: 1000000000}", "--set", "tensorboard=false"])
+    output = " ".join(result.output.split())
+    assert result.exit_code == 2 and re.search("training the tiny preset .* needs [0-9,.]+ GiB", output), output
+
+
 @pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a GPU")
 def test_training_on_cuda_without_a_gpu_is_a_named_error(tmp_path):
     result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"),

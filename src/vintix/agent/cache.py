@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import torch
 
+from vintix.memory import ensure_fits
 from vintix.model.model import KVUpdate, Vintix, alibi_bias
 
 
@@ -54,6 +55,10 @@ class KVCache:
         """An empty cache shaped for `model`'s backbone and window, on its device and dtype."""
         config = model.config
         weight = model.ln_f.weight
+        keys_and_values = 2 * config.n_layers * batch * config.context_len * config.d_model * weight.element_size()
+        ensure_fits(keys_and_values, f"a KV cache for {batch} envs over a {config.context_len}-step context",
+                    "Step fewer envs in one agent (vintix eval --seeds), or use a model with a shorter context_len",
+                    weight.device)
         return cls(config.n_layers, batch, config.n_heads, config.d_model // config.n_heads,
                    config.context_len, weight.device, weight.dtype)
 

@@ -20,6 +20,7 @@ from safetensors.torch import load_file, save_file
 
 from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import DeviceError, VintixError
+from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
 
 WEIGHTS_FILE = "model.safetensors"
@@ -85,7 +86,10 @@ def build_model(meta: dict[str, Any]) -> Vintix:
         raise CheckpointError(f"checkpoint config has fields {unknown} that this vintix's ModelConfig lacks")
     try:
         config = ModelConfig(**meta["config"])
-        return Vintix(config, [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]])
+        groups, norms = [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]]
+        # Twice the model: it and the weights read into it.
+        return build_within_memory(lambda: Vintix(config, groups, norms), 2, "the model this checkpoint describes",
+                                   "Its config is damaged, or it needs a machine with more memory")
     except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged model.json
         raise CheckpointError(f"does not describe a model this vintix can build ({error}); the checkpoint is "
                               "damaged or not vintix's") from error

@@ -28,6 +28,7 @@ from tqdm import tqdm
 
 from vintix.atomic import atomic_write_text
 from vintix.errors import DeviceError, VintixError
+from vintix.memory import build_within_memory
 from vintix.model.checkpoint import load_pretrained
 from vintix.model.model import Vintix, count_parameters
 from vintix.train.checkpoint import (
@@ -289,7 +290,11 @@ class Trainer:
         self.data = self._load_data()
         self.window_len = config.window
         torch.manual_seed(config.seed)
-        self.model = Vintix(config.model_config(), self.data.groups, self.data.task_norms)
+        # Weights, gradients and Adam's two moments: four copies before a single activation.
+        model_config = config.model_config()
+        self.model = build_within_memory(lambda: Vintix(model_config, self.data.groups, self.data.task_norms), 4,
+                                         f"training the {config.model} preset with model_overrides "
+                                         f"{config.model_overrides}", "Choose a smaller preset or model_overrides")
         self.step, self.tokens = 0, 0
         resume = resumable_checkpoint(self.out, note=print if self.dist.is_main else None)
         if resume is not None:
