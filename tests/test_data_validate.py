@@ -57,6 +57,14 @@ def test_dims_disagree_with_json(dataset):
     assert "(obs_dim, act_dim) = (3, 2)" in problems[0].message and "declares (4, 2)" in problems[0].message
 
 
+def test_a_history_in_another_tasks_folder_is_named(dataset):
+    with h5py.File(hopper_file(dataset), "a") as file:
+        file.attrs["task"] = "reach-v5"  # what our collector records; published files record nothing
+    problem = only_problem(dataset)
+    assert problem.path == hopper_file(dataset)
+    assert "collected on task 'reach-v5' but sits in the folder of task 'hopper-v5'" in problem.message
+
+
 def test_dims_disagree_with_registry(dataset):
     expected = {"hopper-v5": (11, 3)}
     problem = only_problem(dataset, expected_dims=expected.get)

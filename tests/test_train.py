@@ -16,6 +16,7 @@ from safetensors.torch import load_file
 from typer.testing import CliRunner
 
 from vintix.cli import app
+from vintix.errors import DatasetError
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.model import CheckpointError, load_pretrained
 from vintix.model.checkpoint import read_metadata
@@ -30,6 +31,7 @@ from vintix.train import (
     collate_windows,
     learning_rate,
     load_config,
+    load_training_data,
 )
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
@@ -70,6 +72,17 @@ def make_config(data, out, **overrides) -> TrainConfig:
 def logged(out, column="loss"):
     with (out / "log.csv").open() as f:
         return [float(row[column]) for row in csv.DictReader(f)]
+
+
+def test_a_history_moved_into_another_tasks_folder_is_refused(metaworld_data, tmp_path):
+    data = tmp_path / "data"
+    shutil.copytree(metaworld_data, data)
+    reach, push = data / "metaworld" / "reach-v3", data / "metaworld" / "push-v3"
+    with h5py.File(next(reach.glob("*.h5"))) as file:
+        assert file.attrs["task"] == "reach-v3"  # the collector records the task of every history
+    shutil.copy(next(push.glob("*.h5")), reach / "history-0009.h5")  # same dims: only the record tells
+    with pytest.raises(DatasetError, match="collected on task 'push-v3' but sits in the folder of task 'reach-v3'"):
+        load_training_data(data, ["reach-v3"])
 
 
 def test_loss_falls_on_real_histories(metaworld_data, tmp_path):

@@ -89,8 +89,8 @@ class CollectionPlan:
         env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
         # Only a behaviour other than the expert's is recorded, so expert histories keep their bytes.
         behaviour = {} if self.behaviour == "expert" else {"behaviour": self.behaviour}
-        return {"env_seed": env_seed, "collection_seed": self.seed, "steps": self.steps, **self.schedule.recorded(),
-                **behaviour}
+        return {"task": get_task(self.task).name, "env_seed": env_seed, "collection_seed": self.seed,
+                "steps": self.steps, **self.schedule.recorded(), **behaviour}
 
 
 @dataclass(frozen=True)

@@ -67,10 +67,10 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None)
     """Problems of one task folder: its JSON, leftovers of interrupted writes, and every history."""
     task_dir = Path(task_dir)
     problems: list[Problem] = []
-    dims = None
+    dims, task_name = None, None
     try:
         meta = read_task_metadata(task_dir)
-        dims = metadata_dims(meta)
+        dims, task_name = metadata_dims(meta), meta["task_name"]
         registry = expected_dims(meta["task_name"]) if expected_dims else None
         if registry is not None and tuple(registry) != dims:
             problems.append(Problem(
@@ -85,18 +85,28 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None)
     if not histories:
         problems.append(Problem(task_dir, "no learning histories (*.h5); collect some or remove the folder"))
     for path in histories:
-        problems += [Problem(path, message) for message in validate_history(path, dims)]
+        problems += [Problem(path, message) for message in validate_history(path, dims, task_name)]
     return problems
 
 
-def validate_history(path: PathLike, dims: tuple[int, int] | None = None) -> list[str]:
-    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares."""
+def task_mismatch(recorded: object, task: str | None) -> str | None:
+    """Why a history that records task `recorded` cannot be one of `task`'s, or None: a file moved into
+    another task's folder of the same dims would otherwise train as that task."""
+    if task is None or recorded is None or recorded == task:
+        return None
+    return f"was collected on task {recorded!r} but sits in the folder of task {task!r}; move it to {recorded!r}'s folder"
+
+
+def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: str | None = None) -> list[str]:
+    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares and `task`
+    the task its folder holds (our files record the task they were collected on; published ones do not)."""
     path = Path(path)
     messages: list[str] = []
     try:
         with open_hdf5(path) as file, translate_hdf5_errors(path):
             layout = inspect_layout(file)
             messages += layout.problems
+            messages += [m for m in [task_mismatch(file.attrs.get("task"), task)] if m]
             if dims is not None and layout.obs_dim is not None and (layout.obs_dim, layout.act_dim) != dims:
                 messages.append(
                     f"holds (obs_dim, act_dim) = ({layout.obs_dim}, {layout.act_dim}) but the task json declares "

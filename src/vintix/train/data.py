@@ -29,7 +29,7 @@ import torch
 
 from vintix.atomic import atomic_write_text
 from vintix.data.hdf5 import LearningHistory, TaskData, find_tasks
-from vintix.data.validate import validate_history
+from vintix.data.validate import task_mismatch, validate_history
 from vintix.errors import DatasetError, UnknownTaskError, VintixError
 from vintix.model.model import GroupSpec, TaskNorm
 from vintix.tasks import TaskSpec, get_task, resolve_tasks
@@ -89,7 +89,7 @@ def streaming_row_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarra
 def check_histories(task: TaskData) -> None:
     """Refuse a task any of whose histories `vintix data validate` would flag (one full read)."""
     problems = [f"{path.name}: {message}" for path in task.history_paths
-                for message in validate_history(path, (task.obs_dim, task.act_dim))]
+                for message in validate_history(path, (task.obs_dim, task.act_dim), task.task_name)]
     if problems:
         shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
         raise TrainingDataError(
@@ -272,6 +272,8 @@ def _registry_groups(specs: Sequence[TaskSpec]) -> list[GroupSpec]:
 def _histories(task: TaskData) -> list[LearningHistory]:
     histories = [LearningHistory(p) for p in task.history_paths]
     for h in histories:
+        if mismatch := task_mismatch(h.attrs.get("task"), task.task_name):
+            raise DatasetError(h.path, f"{mismatch}; run `vintix data validate`")
         if (h.obs_dim, h.act_dim) != (task.obs_dim, task.act_dim):
             raise DatasetError(
                 h.path, f"holds obs {h.obs_dim} / act {h.act_dim} but its task JSON says obs {task.obs_dim} / act "
