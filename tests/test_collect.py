@@ -1,6 +1,7 @@
 """Collecting noise-distilled learning histories on a real simulator with a real demonstrator."""
 
 import filecmp
+import os
 from dataclasses import replace
 
 import h5py
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
+from vintix.atomic import FolderInUseError, folder_lock
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.collect.bench import benchmark_collection
 from vintix.data import LearningHistory, read_task_metadata, validate_dataset
@@ -179,3 +181,12 @@ def test_a_pilot_fits_each_history_its_own_knots_and_resumes_with_them(tmp_path)
 def test_plan_settings_out_of_range_are_named(settings, message):
     with pytest.raises(CollectionError, match=message):
         CollectionPlan("reach-v3", **{"histories": 1, "steps": 100, **settings})
+
+
+def test_a_second_collection_into_a_folder_in_use_is_refused_at_once(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=10)
+    with folder_lock(tmp_path, "vintix collect"):  # as another process collecting there would hold it
+        with pytest.raises(FolderInUseError, match=rf"is in use by vintix collect \(pid {os.getpid()}\)"):
+            collect(plan, tmp_path)
+        assert not list(tmp_path.rglob("*.h5"))
+    assert len(collect(plan, tmp_path)) == 1  # released with the block: the kernel's lock, no stale file to delete

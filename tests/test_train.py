@@ -15,6 +15,7 @@ import torch
 from safetensors.torch import load_file
 from typer.testing import CliRunner
 
+from vintix.atomic import folder_lock
 from vintix.cli import app
 from vintix.errors import DatasetError
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
@@ -257,6 +258,12 @@ def test_a_model_too_large_for_the_machine_is_refused_before_allocating(metaworl
                                       "--set", "model_overrides={mlp_dim: 1000000000}", "--set", "tensorboard=false"])
     output = " ".join(result.output.split())
     assert result.exit_code == 2 and re.search("training the tiny preset .* needs [0-9,.]+ GiB", output), output
+
+
+def test_a_second_training_into_a_run_folder_in_use_is_refused_at_once(tmp_path):
+    with folder_lock(tmp_path / "run", "vintix train"):
+        result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run")])
+    assert result.exit_code == 2 and "run is in use by vintix train (pid" in " ".join(result.output.split()), result.output
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a GPU")

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -23,12 +24,23 @@ def check_output_path(path: str | os.PathLike[str]) -> None:
     """Raise OutputPathError now if a file stands where one of `path`'s folders must be, so a long
     command fails before its work rather than when it saves the result. Creates nothing."""
     path = Path(path)
-    blocking = next((p for p in path.parents if p.exists()), None)
+    _check_no_file_above(path, path.parents)
+    if path.is_dir():
+        raise OutputPathError(f"cannot write {path}: it is a directory; name a file")
+
+
+def check_output_folder(folder: str | os.PathLike[str]) -> None:
+    """Raise OutputPathError now if `folder`, or one of the folders it must be created in, is a file."""
+    folder = Path(folder)
+    _check_no_file_above(folder, [folder, *folder.parents])
+
+
+def _check_no_file_above(path: Path, folders: Iterable[Path]) -> None:
+    """Raise if the nearest of `folders` (those `path` needs, innermost first) that exists is a file."""
+    blocking = next((p for p in folders if p.exists()), None)
     if blocking is not None and not blocking.is_dir():
         raise OutputPathError(f"cannot write {path}: {blocking} is a file, not a directory; choose another output "
                               "path or move the file")
-    if path.is_dir():
-        raise OutputPathError(f"cannot write {path}: it is a directory; name a file")
 
 
 def make_parent_dirs(path: str | os.PathLike[str]) -> None:
@@ -71,3 +83,36 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Write `text` to `path` atomically."""
     with atomic_path(path) as temporary:
         temporary.write_text(text)
+
+
+LOCK_FILE = ".vintix-lock"
+"""The file in an output folder that the command writing into it holds locked (`folder_lock`)."""
+
+
+class FolderInUseError(OutputPathError):
+    """Another process is already writing into the output folder."""
+
+
+@contextmanager
+def folder_lock(folder: str | os.PathLike[str], command: str) -> Iterator[None]:
+    """Hold `folder` for `command` while the block runs: a second collection or training into the same
+    folder fails at once, naming the first, instead of both writing the same files. The lock is the
+    kernel's (flock), so a process that dies, however it dies, releases it."""
+    folder = Path(folder)
+    check_output_folder(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / LOCK_FILE, "a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "another vintix process"
+            raise FolderInUseError(f"{folder} is in use by {holder}; wait for it to end, or write to another folder") from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{command} (pid {os.getpid()})\n")
+        handle.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)

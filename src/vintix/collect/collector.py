@@ -32,6 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vintix import cluster
+from vintix.atomic import folder_lock
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
@@ -324,14 +325,21 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
     root = Path(root)
     if workers < 1:
         raise CollectionError(f"workers must be >= 1, got {workers}")
+    if demonstrator is None:
+        for plan in plans:  # fail before writing anything for a task without one
+            load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour)
+    with folder_lock(root, "vintix collect"):
+        return _collect(plans, root, workers, demonstrator, ray)
+
+
+def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator: Demonstrator | None,
+             ray: str | None) -> list[HistorySummary]:
     if ray is not None:
         cluster.connect(ray)  # a missing Ray or an unreachable cluster fails before anything is written
     jobs = []
     for plan in plans:
         spec = get_task(plan.task)
         _check_existing_histories(plan, root)
-        if demonstrator is None:
-            load_demonstrator(spec.name, behaviour=plan.behaviour)  # fail before writing anything for a task without one
         # The noise-free tail fraction tells expert distillation (a training ablation) which rows to keep.
         write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
                             domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale,

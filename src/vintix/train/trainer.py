@@ -26,7 +26,7 @@ import torch.nn.functional as F
 from torch import nn
 from tqdm import tqdm
 
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, folder_lock
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
 from vintix.model.checkpoint import load_pretrained
@@ -531,9 +531,12 @@ class Trainer:
 
 
 def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (), scorer: Scorer | None = None) -> Path:
-    """Run (or resume) a whole training run; under ``torchrun`` every rank calls this."""
+    """Run (or resume) a whole training run; under ``torchrun`` every rank calls this (rank 0 holds the
+    run folder, so a second training into it fails at once)."""
+    main_rank = int(os.environ.get("RANK", "0")) == 0
     try:
-        return Trainer(config, callbacks, scorer).run()
+        with folder_lock(config.out, "vintix train") if main_rank else contextlib.nullcontext():
+            return Trainer(config, callbacks, scorer).run()
     finally:
         if dist.is_initialized():
             dist.destroy_process_group()
