@@ -125,6 +125,22 @@ def test_interrupted_and_resumed_run_equals_the_straight_run(metaworld_data, tmp
     assert logged(straight) == logged(resumed)
 
 
+def test_resume_with_other_settings_or_data_is_refused_unless_accepted(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    Trainer(make_config(metaworld_data, out, max_steps=1, checkpoint_every=1)).run()
+    with pytest.raises(CheckpointError, match=r"differs from the one that wrote it in batch_size \(checkpoint 4, now 2\); "
+                                              r"lr \(checkpoint 0.0003, now 0.002\).*allow_resume_changes=true"):
+        Trainer(make_config(metaworld_data, out, max_steps=2, lr=2e-3, batch_size=2))
+    other_data = tmp_path / "data"
+    shutil.copytree(metaworld_data, other_data)
+    (other_data / "metaworld" / "push-v3" / "history-0001.h5").unlink()
+    with pytest.raises(CheckpointError, match="in the data's histories"):
+        Trainer(make_config(other_data, out, max_steps=2))
+    assert Trainer(make_config(metaworld_data, out, max_steps=2, log_every=2)).step == 1  # longer, logged less: free
+    accepted = Trainer(make_config(metaworld_data, out, max_steps=2, lr=2e-3, allow_resume_changes=True))
+    assert accepted.step == 1
+
+
 def test_resume_into_a_different_model_config_is_refused(metaworld_data, tmp_path):
     out = tmp_path / "run"
     Trainer(make_config(metaworld_data, out, max_steps=1)).run()

@@ -21,7 +21,7 @@ import json
 import os
 import re
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -269,6 +269,18 @@ def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec
             f"cannot resume from {directory}: " + "; ".join(problems)
             + ". Train into a new --out directory, or re-run with the config and data of the original run"
         )
+
+
+def resume_changes(directory: Path, config: dict[str, Any], dataset_fingerprint: str, free: Iterable[str]) -> list[str]:
+    """How a run resumed from the checkpoint in `directory` with `config` (a TrainConfig as a dict) on data
+    of `dataset_fingerprint` differs from the run that wrote it, ignoring the `free` fields."""
+    extra = read_metadata(directory).get("extra", {})
+    saved = extra.get("train_config", {})
+    changes = [f"{key} (checkpoint {saved[key]!r}, now {value!r})" for key, value in config.items()
+               if key not in free and key in saved and saved[key] != value]
+    if extra.get("dataset_fingerprint") not in (None, dataset_fingerprint):
+        changes.append(f"the data's histories (checkpoint trained on {extra.get('dataset')}; the files now differ)")
+    return changes
 
 
 def prune_checkpoints(out: str | os.PathLike[str], keep: int, step: int | None = None) -> None:

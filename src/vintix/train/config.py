@@ -116,6 +116,9 @@ class TrainConfig:
     metric with true rewards minus with zeros: how much the rewards drive it); doubles selection time"""
     stats_cache_dir: str | None = None
     """where normalization statistics are cached (default: ~/.cache/vintix/norm-stats)"""
+    allow_resume_changes: bool = False
+    """resume a run even though its data or a setting that shapes training (lr, batch size, seed, ...)
+    differs from what its checkpoint recorded; by default such a resume is refused, naming each change"""
 
     def __post_init__(self) -> None:
         # Values from YAML and --set arrive untyped: "abc" must not reach a comparison as max_steps.
@@ -184,6 +187,16 @@ class TrainConfig:
 
 _SET_HINT = ("(--set values are read as YAML: --set max_steps=500, --set 'tasks=[reach-v3, push-v3]', "
              "--set model_overrides={mask_reward: true})")
+
+
+FREE_ON_RESUME = frozenset({
+    "data", "out", "max_steps", "device", "num_workers", "checkpoint_every", "keep_checkpoints", "log_every",
+    "tensorboard", "select_every", "select_shots", "select_seeds", "select_first_seed", "select_reward_gap",
+    "stats_cache_dir", "allow_resume_changes",
+})
+"""TrainConfig fields a resumed run may change: where things are, how long it runs, how often it logs,
+saves and scores. Every other field shapes the weights or what "best" means, so a resumed run that
+changes one is a different run (`TrainConfig.allow_resume_changes`)."""
 
 
 def _parse_override(item: str) -> tuple[str, Any]:

@@ -29,7 +29,7 @@ from tqdm import tqdm
 from vintix.atomic import atomic_write_text, folder_lock
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
-from vintix.model.checkpoint import load_pretrained
+from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix, count_parameters
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
@@ -42,10 +42,11 @@ from vintix.train.checkpoint import (
     read_rng,
     read_training_state,
     resumable_checkpoint,
+    resume_changes,
     save_best_checkpoint,
     save_training_checkpoint,
 )
-from vintix.train.config import ConfigError, TrainConfig
+from vintix.train.config import FREE_ON_RESUME, ConfigError, TrainConfig
 from vintix.train.data import Batch, TrainingData, WindowBatches, WindowDataset, collate_windows, load_training_data
 
 _Result = TypeVar("_Result")
@@ -299,6 +300,13 @@ class Trainer:
         resume = resumable_checkpoint(self.out, note=print if self.dist.is_main else None)
         if resume is not None:
             check_resumable(resume, self.model.config, self.data.groups, [n.task for n in self.data.task_norms])
+            changes = resume_changes(resume, dataclasses.asdict(config), self.data.fingerprint, FREE_ON_RESUME)
+            if changes and not config.allow_resume_changes:
+                raise CheckpointError(
+                    f"cannot resume from {resume}: this run differs from the one that wrote it in " + "; ".join(changes)
+                    + ". Re-run with the original data and settings, train into a new --out, or accept the changes "
+                    "with --set allow_resume_changes=true"
+                )
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
             self.model = load_pretrained(resume)
         self.model.to(self.device).train()
