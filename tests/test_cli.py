@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 
+import pytest
 from typer.testing import CliRunner
 
 from vintix.cli import app
@@ -183,3 +184,29 @@ def test_counts_and_presets_out_of_range_fail_before_any_work():
                               "Invalid value for '--timesteps'")):
         result = runner.invoke(app, command)
         assert result.exit_code == 2 and message in result.output, (command, result.output)
+
+
+HOLDINGS = {
+    "dataset": lambda folder: (folder / "metaworld" / "reach-v3").mkdir(parents=True) or
+    (folder / "metaworld" / "reach-v3" / "history-0000.h5").write_bytes(b""),
+    "run": lambda folder: (folder / "checkpoints").mkdir(parents=True),
+    "results": lambda folder: folder.mkdir() or (folder / "episodes.csv").write_text("task\n"),
+}
+
+
+
+@pytest.mark.parametrize(("holding", "command", "writes"), [
+    ("results", ["collect", "--recipe", "tiny"], "a dataset (learning histories)"),
+    ("dataset", ["train", "--config", "tiny", "--data", "."], "a training run"),
+    ("run", ["eval", "--checkpoint", "point-goal", "--tasks", "point-goal-v1", "--shots", "1", "--seeds", "1"],
+     "evaluation results"),
+    ("dataset", ["report", "."], "a report"),
+])
+def test_an_output_folder_holding_another_kind_of_output_is_refused(tmp_path, holding, command, writes):
+    folder = tmp_path / "out"
+    HOLDINGS[holding](folder)
+    before = sorted(folder.rglob("*"))
+    result = runner.invoke(app, [*command, "--out", str(folder)])
+    output = " ".join(result.output.split())
+    assert result.exit_code == 2 and "already holds" in output and f"writing {writes} into it" in output, output
+    assert sorted(folder.rglob("*")) == before  # nothing written

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import fcntl
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -116,3 +116,24 @@ def folder_lock(folder: str | os.PathLike[str], command: str) -> Iterator[None]:
             yield
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+OUTPUT_KINDS: dict[str, tuple[str, Callable[[Path], bool]]] = {
+    "dataset": ("a dataset (learning histories)", lambda folder: any(folder.glob("*/*/*.h5"))),
+    "run": ("a training run", lambda folder: (folder / "checkpoints").is_dir() or (folder / "log.csv").is_file()),
+    "results": ("evaluation results", lambda folder: (folder / "episodes.csv").is_file()),
+    "report": ("a report", lambda folder: (folder / "report.md").is_file()),
+}
+"""What each command writes into its output folder, and how to recognize it there."""
+
+
+def check_output_kind(folder: str | os.PathLike[str], kind: str) -> None:
+    """Raise OutputPathError if `folder` already holds another kind of output than `kind` (a key of
+    OUTPUT_KINDS): writing a training run into a dataset, or results into a run, would mix the two."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    for other, (what, holds) in OUTPUT_KINDS.items():
+        if other != kind and holds(folder):
+            raise OutputPathError(f"{folder} already holds {what}; writing {OUTPUT_KINDS[kind][0]} into it would mix "
+                                  "the two: choose another output folder")

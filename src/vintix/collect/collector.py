@@ -32,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vintix import cluster
-from vintix.atomic import folder_lock
+from vintix.atomic import check_output_kind, folder_lock
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
@@ -328,6 +328,7 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
     if demonstrator is None:
         for plan in plans:  # fail before writing anything for a task without one
             load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour)
+    check_output_kind(root, "dataset")
     with folder_lock(root, "vintix collect"):
         return _collect(plans, root, workers, demonstrator, ray)
 

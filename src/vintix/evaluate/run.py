@@ -31,7 +31,7 @@ from rich.progress import Progress
 
 from vintix import cluster
 from vintix.agent import Agent
-from vintix.atomic import atomic_write_text, check_output_path
+from vintix.atomic import atomic_write_text, check_output_kind, check_output_path
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.scores import Reference, missing_reference_note, reference
@@ -356,6 +356,7 @@ def evaluate(
     and notes (skipped tasks, missing references) for the user."""
     if out is not None:
         check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
+        check_output_kind(out, "results")
     specs, notes = select_tasks(config.tasks, list(agent.model.groups))
     refs, missing = references([s.name for s in specs])
     started = time.time()

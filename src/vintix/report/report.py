@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
 
-from vintix.atomic import atomic_path, atomic_write_text
+from vintix.atomic import atomic_path, atomic_write_text, check_output_kind
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
@@ -288,6 +288,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     true-reward folder to compare with)."""
     if plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
+    check_output_kind(out, "report")
     loaded = [load_results(Path(folder), table) for folder in folders]
     results = [r for r, _ in loaded]
     notes = [n for _, ns in loaded for n in ns]

@@ -26,7 +26,7 @@ import torch.nn.functional as F
 from torch import nn
 from tqdm import tqdm
 
-from vintix.atomic import atomic_write_text, folder_lock
+from vintix.atomic import atomic_write_text, check_output_kind, folder_lock
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
 from vintix.model.checkpoint import CheckpointError, load_pretrained
@@ -542,6 +542,7 @@ def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (), s
     """Run (or resume) a whole training run; under ``torchrun`` every rank calls this (rank 0 holds the
     run folder, so a second training into it fails at once)."""
     main_rank = int(os.environ.get("RANK", "0")) == 0
+    check_output_kind(config.out, "run")
     try:
         with folder_lock(config.out, "vintix train") if main_rank else contextlib.nullcontext():
             return Trainer(config, callbacks, scorer).run()
