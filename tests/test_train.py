@@ -269,6 +269,14 @@ def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_
     assert not (tmp_path / "run").exists()
 
 
+def test_an_option_and_a_setting_that_disagree_are_refused(tmp_path):
+    result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "a"),
+                                      "--set", f"out={tmp_path / 'b'}"])
+    output = " ".join(result.output.split())
+    assert result.exit_code == 2 and f"--out {tmp_path / 'a'} but --set out={tmp_path / 'b'}: give each value once" in output
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
 def test_a_model_too_large_for_the_machine_is_refused_before_allocating(metaworld_data, tmp_path):
     result = CliRunner().invoke(app, ["train", "--data", str(metaworld_data), "--out", str(tmp_path / "run"),
                                       "--set", "model_overrides={mlp_dim: 1000000000}", "--set", "tensorboard=false"])

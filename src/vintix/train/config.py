@@ -235,8 +235,13 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
             raise ConfigError(f"{path}: not valid YAML ({error})") from error
         if not isinstance(fields, dict):
             raise ConfigError(f"{path}: expected a mapping of TrainConfig fields")
-    fields.update({k: v for k, v in (overrides or {}).items() if v is not None})
-    fields.update(_parse_override(item) for item in settings or [])
+    given = {k: v for k, v in (overrides or {}).items() if v is not None}
+    fields.update(given)
+    settings_given = dict(_parse_override(item) for item in settings or [])
+    clashes = [f"--{k} {given[k]} but --set {k}={v}" for k, v in settings_given.items() if k in given and v != given[k]]
+    if clashes:
+        raise ConfigError(f"{'; '.join(clashes)}: give each value once")
+    fields.update(settings_given)
     known = {f.name for f in dataclasses.fields(TrainConfig)}
     unknown = sorted(set(fields) - known)
     if unknown:
