@@ -65,6 +65,13 @@ def test_a_history_in_another_tasks_folder_is_named(dataset):
     assert "collected on task 'reach-v5' but sits in the folder of task 'hopper-v5'" in problem.message
 
 
+def test_an_episode_longer_than_the_tasks_is_named(dataset):
+    problem = only_problem(dataset, episode_limit=lambda name: 5 if name == "reach-v5" else None)
+    assert problem.path.parent.name == "reach"
+    assert "step_num 5 at row 5: an episode longer than the task's 5 steps" in problem.message
+    assert validate_dataset(dataset, episode_limit=lambda name: EPISODE_LEN) == []  # full-length episodes are fine
+
+
 def test_dims_disagree_with_registry(dataset):
     expected = {"hopper-v5": (11, 3)}
     problem = only_problem(dataset, expected_dims=expected.get)

@@ -461,6 +461,15 @@ def registry_dims(task_name: str) -> tuple[int, int] | None:
     return spec.obs_dim, spec.act_dim
 
 
+def registry_episode_limit(task_name: str) -> int | None:
+    """The most steps an episode of a dataset's task can have; None if the registry does not know the task
+    or its episodes end themselves (Bi-DexHands' episode length is a mean)."""
+    try:
+        return get_task(task_name).episode_limit
+    except VintixError:
+        return None
+
+
 @data_app.command("validate")
 def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")]) -> None:
     """Check a dataset's structure, dtypes, dims (vs the task registry), step numbers and values against the
@@ -475,7 +484,8 @@ def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root
     if not folders:
         raise _fail(DatasetError(root, "no <domain>/<task_dir>/ folders found; point to the dataset root "
                                        "(layout: docs/data-format.md)"))
-    problems = [p for folder in track(folders, description="validating") for p in validate_task(folder, registry_dims)]
+    problems = [p for folder in track(folders, description="validating")
+                for p in validate_task(folder, registry_dims, registry_episode_limit)]
     for problem in problems:
         console.print(f"[red]✗[/red] {problem}", highlight=False)
     if problems:

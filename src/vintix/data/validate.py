@@ -38,6 +38,8 @@ from vintix.data.hdf5 import (
 
 ExpectedDims = Callable[[str], tuple[int, int] | None]
 """task_name -> (obs_dim, act_dim) from the task registry, or None for a task it does not know."""
+EpisodeLimit = Callable[[str], int | None]
+"""task_name -> the most steps one of its episodes can have (the registry's episode length), or None."""
 
 
 @dataclass(frozen=True)
@@ -51,7 +53,8 @@ class Problem:
         return f"{self.path}: {self.message}"
 
 
-def validate_dataset(root: PathLike, expected_dims: ExpectedDims | None = None) -> list[Problem]:
+def validate_dataset(root: PathLike, expected_dims: ExpectedDims | None = None,
+                     episode_limit: EpisodeLimit | None = None) -> list[Problem]:
     """Every problem of the dataset at ``root``; an empty list means it follows the official format."""
     try:
         folders = task_dirs(root)
@@ -60,17 +63,19 @@ def validate_dataset(root: PathLike, expected_dims: ExpectedDims | None = None) 
     if not folders:
         return [Problem(Path(root), "no <domain>/<task_dir>/ folders found; point to the dataset root "
                         "(layout: docs/data-format.md)")]
-    return [problem for folder in folders for problem in validate_task(folder, expected_dims)]
+    return [problem for folder in folders for problem in validate_task(folder, expected_dims, episode_limit)]
 
 
-def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None) -> list[Problem]:
+def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None,
+                  episode_limit: EpisodeLimit | None = None) -> list[Problem]:
     """Problems of one task folder: its JSON, leftovers of interrupted writes, and every history."""
     task_dir = Path(task_dir)
     problems: list[Problem] = []
-    dims, task_name = None, None
+    dims, task_name, limit = None, None, None
     try:
         meta = read_task_metadata(task_dir)
         dims, task_name = metadata_dims(meta), meta["task_name"]
+        limit = episode_limit(task_name) if episode_limit else None
         registry = expected_dims(meta["task_name"]) if expected_dims else None
         if registry is not None and tuple(registry) != dims:
             problems.append(Problem(
@@ -85,7 +90,7 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None)
     if not histories:
         problems.append(Problem(task_dir, "no learning histories (*.h5); collect some or remove the folder"))
     for path in histories:
-        problems += [Problem(path, message) for message in validate_history(path, dims, task_name)]
+        problems += [Problem(path, message) for message in validate_history(path, dims, task_name, limit)]
     return problems
 
 
@@ -97,9 +102,11 @@ def task_mismatch(recorded: object, task: str | None) -> str | None:
     return f"was collected on task {recorded!r} but sits in the folder of task {task!r}; move it to {recorded!r}'s folder"
 
 
-def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: str | None = None) -> list[str]:
-    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares and `task`
-    the task its folder holds (our files record the task they were collected on; published ones do not)."""
+def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: str | None = None,
+                     episode_limit: int | None = None) -> list[str]:
+    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares, `task`
+    the task its folder holds (our files record the task they were collected on; published ones do not)
+    and `episode_limit` the most steps an episode of that task can have."""
     path = Path(path)
     messages: list[str] = []
     try:
@@ -112,13 +119,13 @@ def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: 
                     f"holds (obs_dim, act_dim) = ({layout.obs_dim}, {layout.act_dim}) but the task json declares "
                     f"{dims}; the file belongs to another task, or the json is wrong"
                 )
-            messages += _check_contents(file, layout)
+            messages += _check_contents(file, layout, episode_limit)
     except DatasetError as err:
         messages.append(err.problem)
     return messages
 
 
-def _check_contents(file: h5py.File, layout: Layout) -> list[str]:
+def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None = None) -> list[str]:
     """Official dtypes, group sizes, finite values and step_num counting, group by group in step order
     (demonstrator actions, when the file has them, are checked like actions)."""
     log = ProblemLog()
@@ -160,6 +167,10 @@ def _check_contents(file: h5py.File, layout: Layout) -> list[str]:
                 recollect,
                 len(breaks),
             )
+        if episode_limit is not None and steps.max() >= episode_limit:
+            first = int(np.argmax(steps >= episode_limit))
+            log.add("episode length", f"step_num {int(steps[first])} at row {offset + first}: an episode longer than "
+                    f"the task's {episode_limit} steps; the file is another task's, or its collection broke", recollect)
         previous_stop, last_step = span.stop, int(steps[-1])
     return log.messages()
 

@@ -66,6 +66,12 @@ class TaskSpec:
     paper_histories: int
     """Learning histories per task in the paper's dataset."""
 
+    @property
+    def episode_limit(self) -> int | None:
+        """The most steps an episode can have; None where episodes end themselves and `episode_length`
+        is only their mean (Bi-DexHands)."""
+        return None if self.domain == "bidexhands" else self.episode_length
+
 
 def _optional_float(text: str) -> float | None:
     return float(text) if text else None

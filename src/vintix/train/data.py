@@ -88,8 +88,9 @@ def streaming_row_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarra
 
 def check_histories(task: TaskData) -> None:
     """Refuse a task any of whose histories `vintix data validate` would flag (one full read)."""
+    limit = _registry_spec(task).episode_limit
     problems = [f"{path.name}: {message}" for path in task.history_paths
-                for message in validate_history(path, (task.obs_dim, task.act_dim), task.task_name)]
+                for message in validate_history(path, (task.obs_dim, task.act_dim), task.task_name, limit)]
     if problems:
         shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
         raise TrainingDataError(
