@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -172,6 +174,21 @@ def test_truncated_file(dataset):
     assert problem.path == path
     assert "not a readable HDF5 file (truncated or corrupted?)" in problem.message
     assert str(path) in str(problem)
+
+
+def test_a_file_another_process_is_writing_is_not_called_damaged(dataset):
+    writer = subprocess.Popen([sys.executable, "-c", "import h5py, sys, time\n"
+                               f"f = h5py.File({str(hopper_file(dataset))!r}, 'a'); print('open', flush=True); time.sleep(60)"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert writer.stdout.readline().strip() == "open"
+        problem = only_problem(dataset)
+    finally:
+        writer.kill()
+        writer.wait()
+    assert problem.path == hopper_file(dataset) and "another process has it open for writing" in problem.message
+    assert "not damaged" in problem.message and "delete" not in problem.message
+    assert validate_dataset(dataset) == []  # the writer gone, the file reads
 
 
 def test_a_corrupted_data_block_is_reported_with_its_file(dataset):

@@ -97,6 +97,12 @@ def translate_hdf5_errors(path: Path) -> Iterator[None]:
     """
     try:
         yield
+    except BlockingIOError as err:  # HDF5's own file lock: another process holds the file open for writing
+        raise DatasetError(path, f"another process has it open for writing ({err}), e.g. a collection still running; "
+                                 "the file is not damaged: wait for that process to end") from err
+    except PermissionError as err:
+        raise DatasetError(path, f"no permission to read it ({err}); the file is not damaged: give your user read "
+                                 "access (chmod u+r)") from err
     except _HDF5_FAILURES as err:
         # HDF5 reports a failed checksum (or decompression) only as a filter failure.
         what = ("a data block failed its checksum (corrupted on disk)" if "filter returned failure" in str(err)
