@@ -16,9 +16,10 @@ from safetensors.torch import load_file
 from typer.testing import CliRunner
 
 from vintix.atomic import folder_lock
+from vintix.agent import Agent
 from vintix.cli import app
-from vintix.errors import DatasetError
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.errors import DatasetError
 from vintix.model import CheckpointError, load_pretrained
 from vintix.model.checkpoint import read_metadata
 from vintix.train import (
@@ -128,8 +129,9 @@ def test_interrupted_and_resumed_run_equals_the_straight_run(metaworld_data, tmp
 def test_resume_with_other_settings_or_data_is_refused_unless_accepted(metaworld_data, tmp_path):
     out = tmp_path / "run"
     Trainer(make_config(metaworld_data, out, max_steps=1, checkpoint_every=1)).run()
-    with pytest.raises(CheckpointError, match=r"differs from the one that wrote it in batch_size \(checkpoint 4, now 2\); "
-                                              r"lr \(checkpoint 0.0003, now 0.002\).*allow_resume_changes=true"):
+    with pytest.raises(CheckpointError,
+                       match=r"differs from the one that wrote it in batch_size \(checkpoint 4, now 2\); "
+                             r"lr \(checkpoint 0.0003, now 0.002\).*allow_resume_changes=true"):
         Trainer(make_config(metaworld_data, out, max_steps=2, lr=2e-3, batch_size=2))
     other_data = tmp_path / "data"
     shutil.copytree(metaworld_data, other_data)
@@ -269,11 +271,22 @@ def test_a_setting_of_the_wrong_type_or_range_is_named_before_anything_runs(tmp_
     assert not (tmp_path / "run").exists()
 
 
+def test_a_model_trained_on_shorter_windows_attends_over_them_when_it_acts(metaworld_data, tmp_path):
+    out = tmp_path / "run"
+    Trainer(make_config(metaworld_data, out, max_steps=1, checkpoint_every=1, window_len=48)).run()
+    model = load_pretrained(latest_checkpoint(out))
+    assert model.config.context_len == 48  # not the preset's 1024: positions past 48 were never trained
+    agent = Agent(model)
+    agent.reset(["reach-v3"])
+    assert agent.cache.window == 48
+
+
 def test_an_option_and_a_setting_that_disagree_are_refused(tmp_path):
     result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "a"),
                                       "--set", f"out={tmp_path / 'b'}"])
     output = " ".join(result.output.split())
-    assert result.exit_code == 2 and f"--out {tmp_path / 'a'} but --set out={tmp_path / 'b'}: give each value once" in output
+    assert result.exit_code == 2
+    assert f"--out {tmp_path / 'a'} but --set out={tmp_path / 'b'}: give each value once" in output
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
@@ -287,7 +300,8 @@ def test_a_model_too_large_for_the_machine_is_refused_before_allocating(metaworl
 def test_a_second_training_into_a_run_folder_in_use_is_refused_at_once(tmp_path):
     with folder_lock(tmp_path / "run", "vintix train"):
         result = CliRunner().invoke(app, ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run")])
-    assert result.exit_code == 2 and "run is in use by vintix train (pid" in " ".join(result.output.split()), result.output
+    assert result.exit_code == 2, result.output
+    assert "run is in use by vintix train (pid" in " ".join(result.output.split()), result.output
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a GPU")
@@ -321,8 +335,8 @@ def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path)
     assert -2.0 < score < 2.0
     # The same shots with zero rewards fed back ran too (select_reward_gap is on by default).
     gap = logged(out, "reward_use_gap")[0]
-    assert math.isfinite(gap) and gap == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["reward_use_gap"],
-                                                       abs=1e-6)
+    recorded = read_metadata(best_checkpoint_dir(out))["extra"]["reward_use_gap"]
+    assert math.isfinite(gap) and gap == pytest.approx(recorded, abs=1e-6)
 
 
 def diverge(model, step):

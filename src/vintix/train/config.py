@@ -44,7 +44,8 @@ class TrainConfig:
     tasks in the folder never leak into training; [] for every task). The dataset's other tasks of the
     same groups get observation statistics only, for held-out evaluation"""
     window_len: int | None = None
-    """steps per training window L (default: the model's context_len)"""
+    """steps per training window L (default: the model's context_len); also the saved model's context_len,
+    the window the agent attends over"""
     batch_size: int = 8
     """windows per micro-batch per process"""
     grad_accum: int = 1
@@ -74,7 +75,8 @@ class TrainConfig:
     expert_distillation: bool = False
     """ablation: learn the demonstrator's actions instead of the history's (expert distillation); see expert_rows"""
     expert_rows: str = "auto"
-    """expert distillation on 'auto': every row, target = the stored demonstrator action, for tasks whose histories all store it (else 'tail'); 'tail': the noise-free tail only (paper)"""
+    """expert distillation on 'auto': every row, target = the stored demonstrator action, for tasks whose histories
+    all store it (else 'tail'); 'tail': the noise-free tail only (paper)"""
     normalize_rewards: bool = False
     """scale each task's rewards to unit std over its data (stored in the checkpoint as the task's reward
     scale) instead of the registry's fixed scale: a reward encoder then sees every task's rewards at one scale"""
@@ -139,7 +141,8 @@ class TrainConfig:
         bad = [f"{k}={v}" for k, v in non_negative.items() if v < 0]
         if bad:
             raise ConfigError(f"these fields must be >= 0: {', '.join(bad)}")
-        ranges = {"lr": (self.lr, 0 < self.lr), "min_lr_fraction": (self.min_lr_fraction, 0 <= self.min_lr_fraction <= 1),
+        ranges = {"lr": (self.lr, 0 < self.lr),
+                  "min_lr_fraction": (self.min_lr_fraction, 0 <= self.min_lr_fraction <= 1),
                   "beta1": (self.beta1, 0 <= self.beta1 < 1), "beta2": (self.beta2, 0 <= self.beta2 < 1),
                   "expert_tail_fraction": (self.expert_tail_fraction,
                                            self.expert_tail_fraction is None or 0 < self.expert_tail_fraction <= 1)}
@@ -161,7 +164,7 @@ class TrainConfig:
                               f"got {self.select_metric!r}")
         if self.device not in ("auto", "cpu", "cuda"):
             raise ConfigError(f"device must be 'auto', 'cpu' or 'cuda', got {self.device!r}")
-        context_len = self.model_config().context_len  # also checks model_overrides
+        context_len = self._preset_config().context_len  # also checks model_overrides
         if self.window_len is not None and self.window_len > context_len:
             raise ConfigError(
                 f"window_len {self.window_len} exceeds the model's context_len {context_len}; "
@@ -169,7 +172,13 @@ class TrainConfig:
             )
 
     def model_config(self) -> ModelConfig:
-        """The preset with ``model_overrides`` applied."""
+        """The model to train: the preset with ``model_overrides`` applied, its context_len cut to
+        ``window_len`` when that is given. The saved model then attends, when it acts, over the window it
+        was trained on: positions beyond it were never seen in training."""
+        config = self._preset_config()
+        return dataclasses.replace(config, context_len=self.window_len) if self.window_len is not None else config
+
+    def _preset_config(self) -> ModelConfig:
         known = {f.name for f in dataclasses.fields(ModelConfig)}
         unknown = sorted(set(self.model_overrides) - known)
         if unknown:
@@ -181,8 +190,8 @@ class TrainConfig:
 
     @property
     def window(self) -> int:
-        """The window length actually used."""
-        return self.window_len if self.window_len is not None else self.model_config().context_len
+        """The window length actually used (the trained model's context_len)."""
+        return self.model_config().context_len
 
 
 _SET_HINT = ("(--set values are read as YAML: --set max_steps=500, --set 'tasks=[reach-v3, push-v3]', "
@@ -217,13 +226,13 @@ def shipped_configs() -> list[str]:
 
 
 def load_config(config: str, overrides: dict[str, Any] | None = None, settings: list[str] | None = None) -> TrainConfig:
-    """A TrainConfig from a preset name, a shipped config's name or a YAML file, then ``overrides`` (e.g. --data/--out), then
-    ``settings`` (``"field=value"`` strings, values parsed as YAML)."""
+    """A TrainConfig from a preset name, a shipped config's name or a YAML file, then ``overrides`` (e.g.
+    --data/--out), then ``settings`` (``"field=value"`` strings, values parsed as YAML)."""
     if config in PRESETS:
         fields: dict[str, Any] = {"model": config}
     else:
         path = Path(config)
-        shipped = Path(str(resources.files("vintix.train").joinpath("configs", f"{config}.yaml")))
+        shipped = Path(str(resources.files("vintix.train").joinpath("configs").joinpath(f"{config}.yaml")))
         if not path.is_file() and shipped.is_file():
             path = shipped
         elif not path.is_file():
