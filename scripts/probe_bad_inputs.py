@@ -1035,7 +1035,7 @@ cli_error("demonstrator", "train with 0 timesteps", lambda: ["demonstrator", "tr
 
 
 def package_table_untouched() -> str | None:
-    from vintix.demonstrators.scores import scores_path
+    from vintix.tasks.scores import scores_path
 
     before = scores_path().read_bytes()
     cwd = os.getcwd()

@@ -75,7 +75,7 @@ def test_envs_dropped_mid_run_leave_the_others_acting_as_before():
     first = play(agent, inputs, 5)
     agent.keep([3, 0])  # reordered, and a group (push's) loses a member
     rest = play(agent, [{k: v[:, 5:] for k, v in inputs[i].items()} for i in (3, 0)], 7)
-    for env, after in zip((3, 0), rest):
+    for env, after in zip((3, 0), rest, strict=True):
         np.testing.assert_allclose(np.concatenate([first[env], after]), together[env], rtol=1e-5, atol=1e-5)
     with pytest.raises(ValueError, match="keep needs indices"):
         agent.keep([2])
@@ -156,7 +156,8 @@ def test_text_complex_or_non_flag_inputs_are_refused_not_converted(observation, 
 def test_an_empty_contexts_first_step_must_be_an_episode_start():
     agent = Agent(tiny_model())
     agent.reset(["reach-v3", "reach-v3"])
-    with pytest.raises(AgentInputError, match=r"env\(s\) \[1\]: the first step of an empty context must be an episode start"):
+    with pytest.raises(AgentInputError,
+                       match=r"env\(s\) \[1\]: the first step of an empty context must be an episode start"):
         agent.act([np.zeros(39)] * 2, [0.0, 0.0], [True, False])
     agent.act([np.zeros(39)] * 2, [0.0, 0.0], [True, True])
     agent.act([np.zeros(39)] * 2, [1.0, 0.0], [False, True])  # later steps: any mix

@@ -84,5 +84,6 @@ def test_a_model_json_that_asks_for_more_memory_than_the_machine_has_is_refused_
     save_pretrained(make_model(), tmp_path)
     meta = json.loads((tmp_path / "model.json").read_text())
     (tmp_path / "model.json").write_text(json.dumps({**meta, "config": {**meta["config"], "mlp_dim": 10**9}}))
-    with pytest.raises(OutOfMemoryError, match="the model this checkpoint describes needs [0-9,.]+ GiB; this machine has"):
+    with pytest.raises(OutOfMemoryError,
+                       match="the model this checkpoint describes needs [0-9,.]+ GiB; this machine has"):
         load_pretrained(tmp_path)

@@ -47,6 +47,14 @@ def test_check_envs_writes_its_results(tmp_path):
     assert [r["task"] for r in rows] == ["InvertedPendulum-v5"] and float(rows[0]["steps_per_second"]) > 0
 
 
+def test_check_envs_runs_a_task_without_published_scores(tmp_path):
+    out = tmp_path / "check.csv"
+    result = runner.invoke(app, ["check-envs", "point-goal-v1", "--episodes", "1", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    [row] = list(csv.DictReader(open(out)))
+    assert row["task"] == "point-goal-v1" and row["paper_mean"] == row["paper_std"] == row["z"] == ""
+
+
 def test_check_envs_unknown_task_exits_with_a_message():
     result = runner.invoke(app, ["check-envs", "Hoper-v5"])
     assert result.exit_code == 2 and "Did you mean" in result.output
@@ -103,7 +111,8 @@ def test_fit_schedule_prints_recipe_lines_that_collect_accepts(tmp_path):
     assert result.exit_code == 0, result.output
     [line] = [line for line in result.output.splitlines() if "{knots: [1, " in line]
     (tmp_path / "fitted.yaml").write_text(f"defaults: {{histories: 1, steps: 2000}}\ntasks:\n{line}\n")
-    result = runner.invoke(app, ["collect", "--recipe", str(tmp_path / "fitted.yaml"), "--out", str(tmp_path / "fitted")])
+    result = runner.invoke(app, ["collect", "--recipe", str(tmp_path / "fitted.yaml"),
+                                 "--out", str(tmp_path / "fitted")])
     assert result.exit_code == 0 and "wrote 1 histories" in result.output, result.output
 
 
@@ -162,7 +171,8 @@ def test_collect_with_zero_envs_per_batch_is_a_named_error(tmp_path):
 def test_an_output_path_under_a_file_is_named_not_a_traceback(tmp_path):
     blocker = tmp_path / "a-file"
     blocker.write_text("x")
-    result = runner.invoke(app, ["check-envs", "InvertedPendulum-v5", "--episodes", "1", "--out", str(blocker / "x.csv")])
+    result = runner.invoke(app, ["check-envs", "InvertedPendulum-v5", "--episodes", "1",
+                                 "--out", str(blocker / "x.csv")])
     assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output
     assert f"{blocker} is a file, not a directory" in " ".join(result.output.split())
     result = runner.invoke(app, ["collect", "--task", "reach-v3", "--steps", "10", "--out", str(blocker)])
@@ -176,7 +186,8 @@ def test_commands_given_only_tasks_without_a_simulator_say_so():
 
 
 def test_counts_and_presets_out_of_range_fail_before_any_work():
-    for command, message in ((["check-envs", "InvertedPendulum-v5", "--episodes", "0"], "Invalid value for '--episodes'"),
+    for command, message in ((["check-envs", "InvertedPendulum-v5", "--episodes", "0"],
+                              "Invalid value for '--episodes'"),
                              (["check-envs", "InvertedPendulum-v5", "--seed", "-1"], "Invalid value for '--seed'"),
                              (["bench", "train", "huge"], "unknown model preset 'huge'"),
                              (["bench", "infer", "tiny", "--envs", "0"], "Invalid value for '--envs'"),

@@ -32,7 +32,8 @@ def test_collection_on_ray_equals_the_local_collection(tmp_path, local_ray):
     assert on_ray.exit_code == 0, on_ray.output
     assert f"wrote 3 histories (900 steps) under {tmp_path / 'ray'}" in on_ray.output
     task = "metaworld/reach-v3"
-    assert (tmp_path / "ray" / task / "reach-v3.json").read_text() == (tmp_path / "local" / task / "reach-v3.json").read_text()
+    assert ((tmp_path / "ray" / task / "reach-v3.json").read_text()
+            == (tmp_path / "local" / task / "reach-v3.json").read_text())
     for index in range(3):
         name = f"{task}/history-{index:04d}.h5"
         with LearningHistory(tmp_path / "local" / name) as local, LearningHistory(tmp_path / "ray" / name) as on_ray:

@@ -158,7 +158,8 @@ def test_a_pilot_fits_each_history_its_own_knots_and_resumes_with_them(tmp_path)
     assert all(k[0] == 1 and k[-1] == 0 and np.all(np.diff(k) <= 0) for k in knots)
     assert len(set(knots)) == 3  # each goal answers noise its own way (seed 0: three different fits)
     assert not any(s.collected_now for s in collect(plan, tmp_path))  # each file's own knots are not a difference
-    without = CollectionPlan("handle-pull-v3", 3, 300, envs_per_batch=3, schedule=NoiseSchedule(noise_free_fraction=0.1))
+    without = CollectionPlan("handle-pull-v3", 3, 300, envs_per_batch=3,
+                             schedule=NoiseSchedule(noise_free_fraction=0.1))
     for other, folder, difference in [(replace(plan, schedule=replace(plan.schedule, pilot_steps=1000)), tmp_path,
                                        "pilot_steps 2000 (now 1000)"), (without, tmp_path, "pilot_steps 2000 (now 0)"),
                                       (plan, tmp_path / "plain", "pilot_steps 0 (now 2000)")]:

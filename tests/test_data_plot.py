@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.collect.calibrate import noise_free_return
 from vintix.data import DatasetError, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.data.plot import normalized_curve, plot_dataset, smoothness, task_curves
-from vintix.evaluate.scores import reference
+from vintix.tasks.scores import reference
 
 
 def test_normalized_curve_spreads_each_episode_over_its_steps():
@@ -62,16 +63,16 @@ def test_smoothness_tells_a_steady_rise_from_a_jump(tmp_path):
     assert halfway.rank_correlation > 0.99 and halfway.largest_jump < 0.06 and not halfway.smooth()
 
 
-def test_own_expert_scales_each_history_by_its_noise_free_episodes(tmp_path):
+def test_history_expert_scales_each_history_by_its_noise_free_episodes(tmp_path):
     """Two reach-v3 histories play different hidden goals, so their demonstrator returns differ; scaled by
     their own noise-free episodes, the bin that lies inside that tail reads exactly 1 for both."""
     collect(CollectionPlan("reach-v3", histories=2, steps=2000, schedule=NoiseSchedule(1.0, 0.5)), tmp_path / "data")
     by_table = task_curves(tmp_path / "data", bins=4)[0]["metaworld"]["reach-v3"]
-    by_own = task_curves(tmp_path / "data", bins=4, own_expert=True)[0]["metaworld"]["reach-v3"]
+    by_own = task_curves(tmp_path / "data", bins=4, history_expert=noise_free_return)[0]["metaworld"]["reach-v3"]
     assert abs(by_table[0, -1] - by_table[1, -1]) > 0.02  # the goals' demonstrator returns differ (0.99, 0.96)
     np.testing.assert_allclose(by_own[:, -1], 1.0, rtol=1e-9)  # the scripted expert repeats its episode exactly
     np.testing.assert_allclose(by_own[:, 0], by_table[:, 0] * (by_own[:, 1] / by_table[:, 1]), rtol=1e-9)  # a rescale
 
     collect(CollectionPlan("reach-v3", histories=1, steps=500, schedule=NoiseSchedule(1.0, 0.0)), tmp_path / "no-tail")
     with pytest.raises(DatasetError, match="no complete noise-free episode"):
-        smoothness(tmp_path / "no-tail", own_expert=True)
+        smoothness(tmp_path / "no-tail", history_expert=noise_free_return)

@@ -178,7 +178,8 @@ def test_truncated_file(dataset):
 
 def test_a_file_another_process_is_writing_is_not_called_damaged(dataset):
     writer = subprocess.Popen([sys.executable, "-c", "import h5py, sys, time\n"
-                               f"f = h5py.File({str(hopper_file(dataset))!r}, 'a'); print('open', flush=True); time.sleep(60)"],
+                               f"f = h5py.File({str(hopper_file(dataset))!r}, 'a'); "
+                               "print('open', flush=True); time.sleep(60)"],
                               stdout=subprocess.PIPE, text=True)
     try:
         assert writer.stdout.readline().strip() == "open"

@@ -14,16 +14,24 @@ from stable_baselines3.common.callbacks import BaseCallback
 from typer.testing import CliRunner
 
 from vintix.cli import app
-
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
-from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, our_reference_scores, read_scores
-from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure, record_scores
+from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, training
+from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure
 from vintix.demonstrators.trained import shipped_weights_dir
-from vintix.demonstrators import training
-from vintix.demonstrators.training import (SCORE_EPISODES, SCORE_SEED, DemonstratorRecipe, best_check, default_state_dir,
-                                           evaluate_unfinished_run, recipe_for, train_demonstrator, unfinished_runs)
+from vintix.demonstrators.training import (
+    SCORE_EPISODES,
+    SCORE_SEED,
+    DemonstratorRecipe,
+    best_check,
+    default_state_dir,
+    evaluate_unfinished_run,
+    recipe_for,
+    train_demonstrator,
+    unfinished_runs,
+)
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
+from vintix.tasks.scores import our_reference_scores, read_scores, record_scores
 
 
 def normalized(task: str, mean_return: float) -> float:
@@ -40,7 +48,8 @@ def small_recipe(task: str) -> DemonstratorRecipe:
                    hyperparameters={**recipe.hyperparameters, "n_steps": 64, "batch_size": 32, "n_epochs": 1})
 
 
-@pytest.mark.parametrize("task", ["Reacher-v5", "Ant-v5", "industrial-benchmark-35-v1"])  # SAC; Sample Factory's PPO; PPO + VecNormalize
+# SAC; Sample Factory's PPO; PPO + VecNormalize
+@pytest.mark.parametrize("task", ["Reacher-v5", "Ant-v5", "industrial-benchmark-35-v1"])
 def test_trained_policy_round_trips_through_weights_only_files(tmp_path, task):
     path = train_demonstrator(task, timesteps=120, out=tmp_path, progress_bar=False, recipe=small_recipe(task))
     assert path.suffix == ".safetensors" and path.with_suffix(".json").is_file()
@@ -150,7 +159,8 @@ def pendulum_sac(**fields) -> DemonstratorRecipe:
 def test_a_run_with_a_target_score_stops_at_the_first_check_that_reaches_it(tmp_path):
     task = "InvertedPendulum-v5"
     with pytest.raises(KeyboardInterrupt):
-        train_demonstrator(task, out=tmp_path, progress_bar=False, recipe=pendulum_sac(), callback=InterruptAt(70, "ctrl-c"))
+        train_demonstrator(task, out=tmp_path, progress_bar=False, recipe=pendulum_sac(),
+                           callback=InterruptAt(70, "ctrl-c"))
     lines = []  # a target decides when to stop, not how to train: the saved run resumes under it
     path = train_demonstrator(task, out=tmp_path, progress_bar=False, recipe=pendulum_sac(stop_at_score=-100.0),
                               report=lines.append)
@@ -243,7 +253,7 @@ def test_slow_saves_are_spaced_out_so_they_take_a_small_share_of_training(monkey
 
     for save_seconds, expected in [(0.1, [300.0 + 300.1 * k for k in range(8)]), (20.0, [300.0, 1320.0, 2340.0])]:
         clock[0], saved_at[:] = 0.0, []
-        saver = training._SaveEvery(lambda: save(save_seconds), seconds=300.0, max_share=0.02)
+        saver = training._SaveEvery(lambda seconds=save_seconds: save(seconds), seconds=300.0, max_share=0.02)
         while clock[0] < 2500:
             saver._on_step()
             clock[0] += 1.0  # a training step
@@ -365,7 +375,7 @@ def test_demonstrator_eval_writes_to_the_users_folder_and_leaves_the_package_tab
     from typer.testing import CliRunner
 
     from vintix.cli import app
-    from vintix.demonstrators import scores
+    from vintix.tasks import scores
 
     package_table = tmp_path / "package" / "scores.csv"  # a stand-in, so this test never touches the real one
     package_table.parent.mkdir()
@@ -385,4 +395,5 @@ def test_demonstrator_eval_writes_to_the_users_folder_and_leaves_the_package_tab
     assert asked.exit_code == 0, asked.output
     rows = {(s.task, s.policy): s.episodes for s in read_scores(package_table)}
     assert rows[("reach-v3", "demonstrator")] == rows[("reach-v3", "random")] == 1  # asked for: replaced
-    assert len(rows) == len(read_scores(tmp_path / "before.csv")) and str(package_table) in " ".join(asked.output.split())
+    assert len(rows) == len(read_scores(tmp_path / "before.csv"))
+    assert str(package_table) in " ".join(asked.output.split())

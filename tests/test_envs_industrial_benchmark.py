@@ -4,8 +4,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import rollout
 
+from conftest import rollout
 from vintix import make_env
 from vintix.errors import MissingDependencyError
 from vintix.tasks import industrial_benchmark

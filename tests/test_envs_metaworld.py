@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from conftest import rollout
 from metaworld.policies import ENV_POLICY_MAP
 
+from conftest import rollout
 from vintix import list_tasks, make_env
 
 

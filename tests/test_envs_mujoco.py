@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-from conftest import rollout
 
+from conftest import rollout
 from vintix import list_tasks, make_env
 from vintix.errors import UnsupportedOptionError
 

@@ -102,7 +102,8 @@ def test_eval_config_checks_types_and_ranges_in_python_too():
         EvalConfig(seeds="3")
     with pytest.raises(EvalConfigError, match="no tasks to evaluate"):
         EvalConfig(tasks=[",", ""])
-    with pytest.raises(EvalConfigError, match="reward_input 'masked' is unknown; choose one of 'true', 'zero', 'shuffled'"):
+    with pytest.raises(EvalConfigError,
+                       match="reward_input 'masked' is unknown; choose one of 'true', 'zero', 'shuffled'"):
         EvalConfig(reward_input="masked")
 
 
@@ -204,13 +205,15 @@ def test_zero_and_shuffled_rewards_change_what_the_model_sees_but_returns_stay_t
 def test_selection_by_success_needs_a_task_with_a_success_flag_and_measures_the_reward_use_gap():
     model = tiny_model()
     assert 0.0 <= in_context_score(model, ["reach-v3"], shots=2, seeds=1, metric="success") <= 1.0
-    with pytest.raises(ConfigError, match=r"none of \['InvertedPendulum-v5'\] has a success flag.*select_metric 'score'"):
+    with pytest.raises(ConfigError,
+                       match=r"none of \['InvertedPendulum-v5'\] has a success flag.*select_metric 'score'"):
         in_context_score(model, ["InvertedPendulum-v5"], shots=2, seeds=1, metric="success")
     config = TrainConfig(select_every=10, select_shots=2, select_seeds=2)
     selection = in_context_scorer(config)(model, ["InvertedPendulum-v5"])
     zero = in_context_score(model, ["InvertedPendulum-v5"], shots=2, seeds=2, first_seed=1000, reward_input="zero")
     assert selection.reward_use_gap == pytest.approx(selection.score - zero)
-    unmeasured = in_context_scorer(TrainConfig(select_every=10, select_shots=2, select_seeds=2, select_reward_gap=False))
+    unmeasured = in_context_scorer(TrainConfig(select_every=10, select_shots=2, select_seeds=2,
+                                               select_reward_gap=False))
     assert np.isnan(unmeasured(model, ["InvertedPendulum-v5"]).reward_use_gap)
 
 

@@ -3,9 +3,9 @@
 On the toy hidden-goal task (`vintix.tasks.toy`) only rewards reveal the goal. A small model trained
 for a minute and a half on histories of the demonstrator that infers the goal from rewards, by the
 shipped `point-goal` recipe and training config, must end its episodes at the goal from its second
-episode on with the true rewards fed back, and not with zeros. A change to the collector, the model, the trainer or the agent that silently cuts
-the reward channel (the failure of the first shipped model: it improved over shots exactly as much
-with zero rewards) fails this test.
+episode on with the true rewards fed back, and not with zeros. A change to the collector, the model,
+the trainer or the agent that silently cuts the reward channel (the failure of the first shipped
+model: it improved over shots exactly as much with zero rewards) fails this test.
 """
 
 import numpy as np

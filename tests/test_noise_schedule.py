@@ -67,7 +67,8 @@ def test_fitted_knots_spend_the_history_where_return_changes():
 def test_a_pilot_whose_return_does_not_fall_with_noise_gets_linear_decay():
     steps = np.arange(1000)
     epsilon, step_num = 1 - steps / 1000, steps % 100
-    rising = pilot_knots(epsilon, (1 - epsilon).astype(np.float32), step_num)  # the demonstrator earns more with less noise
+    # The demonstrator earns more with less noise.
+    rising = pilot_knots(epsilon, (1 - epsilon).astype(np.float32), step_num)
     assert rising[0] == 1.0 and rising[-1] == 0.0 and len(rising) == 11
     assert pilot_knots(epsilon, np.zeros(1000, np.float32), step_num) == (1.0, 0.0)  # a goal it never scores on
     with pytest.raises(ValueError, match="completed 0 episode\\(s\\), too few to fit knots to"):

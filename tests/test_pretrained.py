@@ -43,7 +43,7 @@ def test_the_shipped_model_acts_within_bounds_in_all_three_domains_and_on_held_o
     rewards, starts = np.zeros(len(envs)), np.ones(len(envs), dtype=bool)
     for _ in range(3):
         actions = agent.act(observations, rewards, starts)
-        for i, (env, action) in enumerate(zip(envs, actions)):
+        for i, (env, action) in enumerate(zip(envs, actions, strict=True)):
             assert env.action_space.contains(action.astype(env.action_space.dtype))
             observations[i], rewards[i], *_ = env.step(action)
         starts[:] = False

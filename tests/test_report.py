@@ -139,8 +139,10 @@ def test_a_folder_without_results_or_without_references_is_a_clear_error(two_res
     (tmp_path / "bidex").mkdir()
     (tmp_path / "bidex" / "run.json").write_text("{}")
     (tmp_path / "bidex" / "episodes.csv").write_text("\n".join(
-        [episodes[0]] + [line.replace("reach-v3", "Hand-Block-Stack", 1) for line in episodes[1:] if "reach-v3" in line]))
-    result = CliRunner().invoke(app, ["report", str(tmp_path / "bidex"), "--out", str(tmp_path / "r"), "--reference", "ours"])
+        [episodes[0]]
+        + [line.replace("reach-v3", "Hand-Block-Stack", 1) for line in episodes[1:] if "reach-v3" in line]))
+    result = CliRunner().invoke(app, ["report", str(tmp_path / "bidex"), "--out", str(tmp_path / "r"),
+                                      "--reference", "ours"])
     assert result.exit_code == 2 and "no task" in result.output and "'ours' reference" in result.output
 
 
@@ -167,15 +169,16 @@ def set_first(column, value):
     (lambda f: (f / "run.json").write_text("{"), "run.json: not valid JSON"),
     (lambda f: (f / "episodes.csv").write_text((f / "episodes.csv").read_text().splitlines()[0] + "\n"),
      "holds no episodes"),
-    (lambda f: (f / "episodes.csv").write_text((f / "episodes.csv").read_text().replace("metaworld,train,metaworld,0",
-                                                                                        "metaworld,train,metaworld,x", 1)),
+    (lambda f: (f / "episodes.csv").write_text(
+        (f / "episodes.csv").read_text().replace("metaworld,train,metaworld,0", "metaworld,train,metaworld,x", 1)),
      r"episodes.csv, line 2: invalid literal for int\(\) with base 10: 'x'"),
     (set_first("return", "inf"), "line 2: return 'inf' is not a finite number"),
     (set_first("return", "nan"), "line 2: return 'nan' is not a finite number"),
     (set_first("shot", "-1"), "line 2: shot -1: shots count from 1"),
     (set_first("success", "0.5"), "line 2: success '0.5' is neither 0, 1 nor empty"),
     (edit_rows(lambda rows: rows + rows[-1:]), "a second row for .* shot"),
-    (edit_rows(lambda rows: [r for r in rows if not (r["shot"] == "2" and r is rows[1])]), "not 1, 2, ... without gaps"),
+    (edit_rows(lambda rows: [r for r in rows if not (r["shot"] == "2" and r is rows[1])]),
+     "not 1, 2, ... without gaps"),
 ])
 def test_damaged_results_are_named_errors_not_tracebacks(two_results, tmp_path, damage, message):
     folder = tmp_path / "results"

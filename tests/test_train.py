@@ -15,8 +15,8 @@ import torch
 from safetensors.torch import load_file
 from typer.testing import CliRunner
 
-from vintix.atomic import folder_lock
 from vintix.agent import Agent
+from vintix.atomic import folder_lock
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.errors import DatasetError

@@ -22,7 +22,7 @@ def test_torchrun_two_processes_on_cpu_keep_replicas_identical(metaworld_data, t
     }))
     out = tmp_path / "run"
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc-per-node", "2",
-               "-m", "vintix.train", "--config", str(config), "--data", str(metaworld_data), "--out", str(out)]
+               "-m", "vintix", "train", "--config", str(config), "--data", str(metaworld_data), "--out", str(out)]
     result = subprocess.run(command, capture_output=True, text=True, timeout=300,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]

@@ -124,7 +124,7 @@ def test_same_index_same_window_and_ranks_never_share_windows(dataset, tmp_path)
     assert all(np.array_equal(a[i]["obs"], b[i]["obs"]) for i in range(20))
     assert not np.array_equal(a[0]["obs"], WindowDataset(data, 30, seed=6)[0]["obs"])
     ranks = [WindowBatches(4, start_micro_batch=2, rank=r, world_size=2) for r in range(2)]
-    seen = [[i for _, batch in zip(range(5), iter(s)) for i in batch] for s in ranks]
+    seen = [[i for _, batch in zip(range(5), iter(s), strict=False) for i in batch] for s in ranks]
     assert not set(seen[0]) & set(seen[1])
     assert sorted(seen[0] + seen[1]) == list(range(16, 56))
 
@@ -135,9 +135,9 @@ def test_worker_processes_load_the_same_batches(dataset, tmp_path):
     def batches(workers):
         loader = torch.utils.data.DataLoader(windows, batch_sampler=WindowBatches(3), collate_fn=collate_windows,
                                              num_workers=workers)
-        return [b for _, b in zip(range(4), loader)]
+        return [b for _, b in zip(range(4), loader, strict=False)]
 
-    for inline, forked in zip(batches(0), batches(2)):
+    for inline, forked in zip(batches(0), batches(2), strict=True):
         assert inline.keys() == forked.keys() == {"metaworld"}
         assert all(torch.equal(inline["metaworld"][k], forked["metaworld"][k]) for k in inline["metaworld"])
 
@@ -148,7 +148,8 @@ def test_batches_mix_groups(tmp_path):
     write_task(root, "Hopper-v5", [[25] * 4], obs_dim=11, act_dim=3)
     data = load(root, tmp_path)
     assert [(g.name, g.obs_dim, g.act_dim) for g in data.groups] == [("metaworld", 39, 4), ("mujoco-hopper", 11, 3)]
-    assert data.task_norms[0].reward_scale == 0.1 and data.tasks[0].name == "Hopper-v5"  # Hopper: from the registry (its JSON has none)
+    # Hopper: from the registry (its JSON has none)
+    assert data.task_norms[0].reward_scale == 0.1 and data.tasks[0].name == "Hopper-v5"
     batch = collate_windows([WindowDataset(data, 30, seed=0)[i] for i in range(12)])
     assert set(batch) == {"metaworld", "mujoco-hopper"}
     assert batch["mujoco-hopper"]["obs"].shape[1:] == (30, 11) and batch["metaworld"]["action"].shape[1:] == (30, 4)
@@ -195,7 +196,8 @@ def test_expert_distillation_learns_stored_demonstrator_actions_on_every_row(tmp
 def test_obs_statistics_stream_over_all_rows_and_are_cached_by_fingerprint(dataset, tmp_path):
     data = load(dataset, tmp_path)
     reach = data.tasks[[t.name for t in data.tasks].index("reach-v3")]
-    obs = np.concatenate([h.history.read(0, h.history.num_steps)["observation"] for h in reach.histories]).astype(np.float64)
+    obs = np.concatenate([h.history.read(0, h.history.num_steps)["observation"]
+                          for h in reach.histories]).astype(np.float64)
     assert np.allclose(reach.norm.obs_mean, obs.mean(axis=0)) and np.allclose(reach.norm.obs_std, obs.std(axis=0))
     [cache] = (tmp_path / "cache").glob("reach-v3-*.json")
     entry = json.loads(cache.read_text())

@@ -1,4 +1,5 @@
-"""``python -m vintix``: the same command line as the installed ``vintix`` script."""
+"""``python -m vintix``: the same command line as the installed ``vintix`` script (and the one each
+process of ``torchrun --nproc-per-node N -m vintix train ...`` runs)."""
 
 from vintix.cli import app
 

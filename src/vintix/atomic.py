@@ -107,7 +107,8 @@ def folder_lock(folder: str | os.PathLike[str], command: str) -> Iterator[None]:
         except BlockingIOError:
             handle.seek(0)
             holder = handle.read().strip() or "another vintix process"
-            raise FolderInUseError(f"{folder} is in use by {holder}; wait for it to end, or write to another folder") from None
+            raise FolderInUseError(
+                f"{folder} is in use by {holder}; wait for it to end, or write to another folder") from None
         handle.seek(0)
         handle.truncate()
         handle.write(f"{command} (pid {os.getpid()})\n")

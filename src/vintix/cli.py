@@ -7,7 +7,7 @@ import io
 import json
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Optional
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
@@ -29,7 +29,9 @@ class _Commands(TyperGroup):
     command (or a file-system error, whose message names its path) ends as ``error: ...`` and exit
     code 2, never as a traceback."""
 
-    def invoke(self, ctx: typer.Context) -> object:
+    # TyperGroup declares the context as the click Context typer vendors (typer._click, not exported);
+    # typer hands its own subclass, typer.Context.
+    def invoke(self, ctx: typer.Context) -> object:  # type: ignore[override]
         try:
             return super().invoke(ctx)
         except (VintixError, OSError) as error:
@@ -38,8 +40,9 @@ class _Commands(TyperGroup):
 
 app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True,
                   cls=_Commands)
-data_app = typer.Typer(help="Inspect learning-history datasets (ours or the published one; format: docs/data-format.md).",
-                        no_args_is_help=True)
+data_app = typer.Typer(
+    help="Inspect learning-history datasets (ours or the published one; format: docs/data-format.md).",
+    no_args_is_help=True)
 app.add_typer(data_app, name="data")
 demonstrator_app = typer.Typer(help="Train and score the experts that learning histories are distilled from.",
                                no_args_is_help=True)
@@ -75,7 +78,7 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _main(
-    version: Annotated[Optional[bool], typer.Option("--version", callback=_print_version, is_eager=True,
+    version: Annotated[bool | None, typer.Option("--version", callback=_print_version, is_eager=True,
                                                     help="print the installed vintix version and exit")] = None,
 ) -> None:
     pass
@@ -104,15 +107,15 @@ def _paper_score(score: ReferenceScore | None) -> str:
 
 @app.command()
 def tasks(
-    domain: Annotated[Optional[str], typer.Option(help="mujoco, metaworld, industrial_benchmark or bidexhands")] = None,
-    split: Annotated[Optional[str], typer.Option(help="train or test")] = None,
-    group: Annotated[Optional[str], typer.Option(help="encoder/head group, e.g. metaworld")] = None,
+    domain: Annotated[str | None, typer.Option(help="mujoco, metaworld, industrial_benchmark or bidexhands")] = None,
+    split: Annotated[str | None, typer.Option(help="train or test")] = None,
+    group: Annotated[str | None, typer.Option(help="encoder/head group, e.g. metaworld")] = None,
 ) -> None:
     """List the task registry (reference scores are the paper's)."""
     try:
         selected = list_tasks(domain=domain, split=split, group=group)
     except VintixError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     table = Table(title=f"{len(selected)} tasks (random/expert: paper's published scores)")
     for column in ("task", "domain", "group", "obs", "act", "episode", "reward×", "split", "random", "expert"):
         table.add_column(column, justify="right" if column in ("obs", "act", "episode", "reward×") else "left")
@@ -130,11 +133,12 @@ DEFAULT_CHECK_TASKS = ["Hopper-v5", "HalfCheetah-v5", "Reacher-v5", "pick-place-
 
 @app.command("check-envs")
 def check_envs(
-    task_names: Annotated[Optional[list[str]], typer.Argument(
-        metavar="[TASKS]...", help="task names, domains or splits (default: a few tasks of each runnable domain)")] = None,
+    task_names: Annotated[list[str] | None, typer.Argument(
+        metavar="[TASKS]...",
+        help="task names, domains or splits (default: a few tasks of each runnable domain)")] = None,
     episodes: Annotated[int, typer.Option(min=1, help="random-policy episodes per task")] = 10,
     seed: Annotated[int, typer.Option(min=0)] = 0,
-    out: Annotated[Optional[Path], typer.Option(help="also write the results to this CSV file")] = None,
+    out: Annotated[Path | None, typer.Option(help="also write the results to this CSV file")] = None,
 ) -> None:
     """Run a uniform-random policy on real envs; compare its return with the paper's and time the env."""
     from vintix.tasks.check import random_policy_returns
@@ -144,34 +148,38 @@ def check_envs(
         if out is not None:
             check_output_path(out)  # before the rollouts, not after them
     except VintixError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     results = [random_policy_returns(t.name, episodes, seed) for t in track(specs, description="random rollouts")]
     table = Table(title=f"uniform-random policy, {episodes} episodes, seed {seed}")
     for column in ("task", "ours", "paper", "z", "env steps/s"):
         table.add_column(column, justify="left" if column == "task" else "right")
-    for result, spec in zip(results, specs):
+    for result, spec in zip(results, specs, strict=True):
         z = result.paper_z
-        table.add_row(spec.name, _score(result.mean, result.std), _score(spec.paper_random.mean, spec.paper_random.std),
+        table.add_row(spec.name, _score(result.mean, result.std), _paper_score(spec.paper_random),
                       "—" if z is None else f"{z:+.2f}", f"{result.steps_per_second:,.0f}")
     console.print(table)
     if out is not None:
         buffer = io.StringIO()
         writer = csv.writer(buffer)
         writer.writerow(["task", "episodes", "seed", "mean", "std", "paper_mean", "paper_std", "z", "steps_per_second"])
-        for result, spec in zip(results, specs):
+        for result, spec in zip(results, specs, strict=True):
+            paper = spec.paper_random  # None for a task that is not the paper's (the toy)
             writer.writerow([spec.name, episodes, seed, f"{result.mean:.3f}", f"{result.std:.3f}",
-                             spec.paper_random.mean, spec.paper_random.std,
-                             "" if result.paper_z is None else f"{result.paper_z:.3f}", f"{result.steps_per_second:.0f}"])
+                             "" if paper is None else paper.mean,
+                             "" if paper is None or paper.std is None else paper.std,
+                             "" if result.paper_z is None else f"{result.paper_z:.3f}",
+                             f"{result.steps_per_second:.0f}"])
         atomic_write_text(out, buffer.getvalue())
         console.print(f"wrote {out}")
 
 
 @app.command()
 def collect(
-    out: Annotated[Optional[Path], typer.Option(help="dataset root to write <domain>/<task>/history-NNNN.h5 under "
+    out: Annotated[Path | None, typer.Option(help="dataset root to write <domain>/<task>/history-NNNN.h5 under "
                                                 "(not needed with --plan)")] = None,
-    task: Annotated[Optional[str], typer.Option(help="one task (or use --recipe)")] = None,
-    recipe: Annotated[Optional[str], typer.Option(help="a recipe YAML file, or a shipped one: tiny, metaworld-cpu")] = None,
+    task: Annotated[str | None, typer.Option(help="one task (or use --recipe)")] = None,
+    recipe: Annotated[str | None, typer.Option(
+        help="a recipe YAML file, or a shipped one: tiny, metaworld-cpu")] = None,
     histories: Annotated[int, typer.Option(help="learning histories for --task")] = 1,
     steps: Annotated[int, typer.Option(help="steps per history for --task")] = 10_000,
     curvature: Annotated[float, typer.Option(help="noise schedule curvature p for --task")] = 1.0,
@@ -181,10 +189,10 @@ def collect(
     envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 16,
     seed: int = 0,
     workers: Annotated[int, typer.Option(help="processes (one per core)")] = 1,
-    ray: Annotated[Optional[str], typer.Option(help=_RAY_HELP)] = None,
+    ray: Annotated[str | None, typer.Option(help=_RAY_HELP)] = None,
     plan: Annotated[bool, typer.Option("--plan", help="print what would be collected, its size on disk and the wall "
                                        "time estimated from measured rates (for --workers), then stop")] = False,
-    rates: Annotated[Optional[Path], typer.Option(help="rates table for --plan (default: the package's, measured by "
+    rates: Annotated[Path | None, typer.Option(help="rates table for --plan (default: the package's, measured by "
                                                   "`vintix bench collect`)")] = None,
 ) -> None:
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
@@ -195,11 +203,13 @@ def collect(
     from vintix.collect.recipe import load_recipe
 
     try:
-        if (task is None) == (recipe is None):
+        if recipe is not None and task is None:
+            plans = load_recipe(recipe)
+        elif task is not None and recipe is None:
+            schedule = NoiseSchedule(curvature, noise_free_fraction, pilot_steps=pilot_steps)
+            plans = [CollectionPlan(task, histories, steps, schedule, seed, envs_per_batch)]
+        else:
             raise VintixError("give exactly one of --task or --recipe")
-        plans = load_recipe(recipe) if recipe else [CollectionPlan(
-            task, histories, steps, NoiseSchedule(curvature, noise_free_fraction, pilot_steps=pilot_steps), seed,
-            envs_per_batch)]
         if plan:
             _print_collection_plan(plans, workers, rates)
             return
@@ -208,7 +218,7 @@ def collect(
         start = time.perf_counter()
         summaries = collect_histories(plans, out, workers=workers, ray=ray)
     except (VintixError, ValueError, FileNotFoundError, NotImplementedError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     seconds = time.perf_counter() - start
     table = Table(title="learning histories: mean episode return, first vs last 10% of episodes")
     for column in ("history", "steps", "episodes", "first 10%", "last 10%"):
@@ -223,7 +233,7 @@ def collect(
                   f"this run collected {new:,} steps in {seconds:.1f} s{speed}")
 
 
-def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file: Optional[Path]) -> None:
+def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file: Path | None) -> None:
     """The `--plan` table: per task what would be collected and what it costs; totals and wall time."""
     from vintix.collect.bench import read_rates
     from vintix.collect.estimate import estimate_plans, wall_seconds
@@ -260,9 +270,10 @@ def _size(n_bytes: int) -> str:
 @demonstrator_app.command("train")
 def demonstrator_train(
     task: Annotated[str, typer.Option(help="a task of the group to train for (one policy per encoder group)")],
-    timesteps: Annotated[Optional[int], typer.Option(min=1, help="env steps (default: the group's recipe)")] = None,
+    timesteps: Annotated[int | None, typer.Option(min=1, help="env steps (default: the group's recipe)")] = None,
     seed: Annotated[int, typer.Option(min=0)] = 0,
-    out: Annotated[Optional[Path], typer.Option(help="folder for the weights (default: the package's shipped ones)")] = None,
+    out: Annotated[Path | None, typer.Option(
+        help="folder for the weights (default: the package's shipped ones)")] = None,
 ) -> None:
     """Train a MuJoCo or Industrial Benchmark demonstrator with Stable-Baselines3 and save its weights."""
     from stable_baselines3.common.callbacks import BaseCallback
@@ -279,11 +290,12 @@ def demonstrator_train(
 
     try:
         recipe = recipe_for(task)
-        until = "" if recipe.stop_at_score is None else f", or until it scores {recipe.stop_at_score} of the paper's expert"
+        until = ("" if recipe.stop_at_score is None
+                 else f", or until it scores {recipe.stop_at_score} of the paper's expert")
         console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}{until}")
         path = train_demonstrator(task, timesteps, seed, out, callback=SayWhereItStarts(), report=console.print)
     except VintixError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     except TrainingInterrupted as interrupted:
         console.print(str(interrupted))
         raise typer.Exit(130) from None
@@ -296,7 +308,8 @@ def demonstrator_train(
                 if "state" in short else "")
         console.print(f"[yellow]the budget of {short['budget']:,} steps ended below the target score "
                       f"{short['target']}[/]{kept}")
-    console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task {task}`")
+    console.print(f"wrote {path} and {path.with_suffix('.json')}; "
+                  f"score it with `vintix demonstrator eval --task {task}`")
 
 
 @demonstrator_app.command("eval")
@@ -309,14 +322,14 @@ def demonstrator_eval(
     update_package_table: Annotated[bool, typer.Option(
         "--update-package-table", help="also rewrite the package's reference table (demonstrators/scores.csv), "
         "which normalizes every 'ours' result")] = False,
-    weights: Annotated[Optional[Path], typer.Option(
+    weights: Annotated[Path | None, typer.Option(
         help="score the trained weights in this folder instead of the shipped ones (e.g. a run's best check, "
         "`vintix demonstrator runs`)")] = None,
 ) -> None:
     """Score demonstrators and a uniform-random policy; record both in a score table (--out)."""
     from vintix.demonstrators import load_demonstrator
-    from vintix.demonstrators.scores import UniformRandomPolicy, measure, record_scores, scores_path
-    from vintix.evaluate.scores import reference
+    from vintix.demonstrators.scores import UniformRandomPolicy, measure
+    from vintix.tasks.scores import record_scores, reference, scores_path
 
     if weights is not None and update_package_table:
         raise _fail(VintixError(f"--update-package-table records the shipped demonstrators, not those in {weights}: "
@@ -326,18 +339,18 @@ def demonstrator_eval(
         demonstrators = [load_demonstrator(spec.name, weights) for spec in specs]
         check_output_path(out)
     except VintixError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"
     command += f" --weights {weights}" if weights else ""
     rows = []
-    for spec, demonstrator in track(list(zip(specs, demonstrators)), description="scoring"):
+    for spec, demonstrator in track(list(zip(specs, demonstrators, strict=True)), description="scoring"):
         line = command.format(task=spec.name)
         rows += [measure(spec.name, "demonstrator", demonstrator, episodes, seed, line),
                  measure(spec.name, "random", UniformRandomPolicy(), episodes, seed, line)]
     result = Table(title=f"{episodes} episodes per policy, seed {seed}; normalized by the paper's random/expert")
     for column in ("task", "demonstrator", "random", "paper expert", "paper random", "normalized"):
         result.add_column(column, justify="left" if column == "task" else "right")
-    for spec, (ours, random) in zip(specs, zip(rows[::2], rows[1::2])):
+    for spec, (ours, random) in zip(specs, zip(rows[::2], rows[1::2], strict=True), strict=True):
         paper = reference(spec.name, "paper")
         result.add_row(spec.name, _score(ours.mean, ours.std), _score(random.mean, random.std),
                        _paper_score(spec.paper_expert), _paper_score(spec.paper_random),
@@ -351,7 +364,8 @@ def demonstrator_eval(
 @demonstrator_app.command("goal-blind")
 def demonstrator_goal_blind(
     task: Annotated[list[str], typer.Option(help="task or domain (metaworld, toy); repeat for several")],
-    seeds: Annotated[int, typer.Option(min=1, help="episodes per policy, env seeds first-seed, first-seed + 1, ...")] = 20,
+    seeds: Annotated[int, typer.Option(
+        min=1, help="episodes per policy, env seeds first-seed, first-seed + 1, ...")] = 20,
     first_seed: Annotated[int, typer.Option(min=0)] = 100,
     out: Annotated[Path, typer.Option(help="table to add the measured rows to (created if missing)")] = Path(
         "goal-blind.csv"),
@@ -367,13 +381,13 @@ def demonstrator_goal_blind(
         results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name))
                    for spec in track(specs, description="goal-blind baselines", console=console)]
     except (VintixError, ValueError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     table = Table(title=f"success over {seeds} episodes (env seeds {first_seed}..{first_seed + seeds - 1})")
     for column in ("task", "true goal", "goal-blind", "hidden information", "return: true goal", "return: goal-blind"):
         table.add_column(column, justify="left" if column == "task" else "right")
     for r in sorted(results, key=lambda r: -r.hidden_information):
-        table.add_row(r.task, f"{r.true_goal_success:.2f}", f"{r.goal_blind_success:.2f}", f"{r.hidden_information:+.2f}",
-                      f"{r.true_goal_return:.1f}", f"{r.goal_blind_return:.1f}")
+        table.add_row(r.task, f"{r.true_goal_success:.2f}", f"{r.goal_blind_success:.2f}",
+                      f"{r.hidden_information:+.2f}", f"{r.true_goal_return:.1f}", f"{r.goal_blind_return:.1f}")
     console.print(table)
     console.print(f"wrote {len(results)} rows to {write_goal_blind(results, out)}")
     if update_package_table:
@@ -383,8 +397,8 @@ def demonstrator_goal_blind(
 @demonstrator_app.command("list")
 def demonstrator_list() -> None:
     """Which tasks have a demonstrator, how it was made, and its recorded score."""
-    from vintix.demonstrators.scores import read_scores
     from vintix.demonstrators.trained import weights_paths
+    from vintix.tasks.scores import read_scores
 
     scores = {(s.task, s.policy): s for s in read_scores()}
     result = Table(title="demonstrators (score: ours, recorded by `vintix demonstrator eval`)")
@@ -480,7 +494,7 @@ def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root
     try:
         folders = task_dirs(root)
     except DatasetError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     if not folders:
         raise _fail(DatasetError(root, "no <domain>/<task_dir>/ folders found; point to the dataset root "
                                        "(layout: docs/data-format.md)"))
@@ -503,12 +517,13 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
     try:
         summaries = summarize_dataset(root)
     except DatasetError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     table = Table(title=f"dataset {root}")
     for column in ("domain", "task", "histories", "steps", "episodes", "mean episode length"):
         table.add_column(column, justify="left" if column in ("domain", "task") else "right")
     for s in summaries:
-        table.add_row(s.domain, s.task_name, str(s.histories), f"{s.steps:,}", f"{s.episodes:,}", f"{s.mean_episode_length:.1f}")
+        table.add_row(s.domain, s.task_name, str(s.histories), f"{s.steps:,}", f"{s.episodes:,}",
+                      f"{s.mean_episode_length:.1f}")
     console.print(table)
 
 
@@ -521,19 +536,22 @@ def data_plot(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
     out: Annotated[Path, typer.Option(help="folder for the PNG figures")] = Path("figs"),
     bins: Annotated[int, typer.Option(min=1, help="bins along the history")] = 50,
-    reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
+    reference: Annotated[str, typer.Option(
+        help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
     own_expert: Annotated[bool, typer.Option(help=OWN_EXPERT_HELP)] = False,
 ) -> None:
     """Paper Figure 3: IQM of normalized episode return along the histories, per task and per domain."""
+    from vintix.collect.calibrate import noise_free_return
     from vintix.data.plot import plot_dataset
 
     try:
-        written, skipped = plot_dataset(root, out, bins, reference, own_expert)
+        written, skipped = plot_dataset(root, out, bins, reference, noise_free_return if own_expert else None)
     except (VintixError, ValueError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     if skipped:
         console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: {', '.join(skipped)}")
-    scale = f"'{reference}' random scores and each history's noise-free return" if own_expert else f"'{reference}' random/expert scores"
+    scale = (f"'{reference}' random scores and each history's noise-free return" if own_expert
+             else f"'{reference}' random/expert scores")
     console.print(f"wrote {len(written)} figures under {out} (normalized by the {scale})")
 
 
@@ -541,16 +559,20 @@ def data_plot(
 def data_smoothness(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
     bins: Annotated[int, typer.Option(min=2, help="bins along the history")] = 10,
-    reference: Annotated[str, typer.Option(help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
+    reference: Annotated[str, typer.Option(
+        help="normalize by 'ours' (measured demonstrator/random returns) or 'paper'")] = "ours",
     own_expert: Annotated[bool, typer.Option(help=OWN_EXPERT_HELP)] = False,
 ) -> None:
-    """Does each task's return rise smoothly from random to demonstrator level? The criterion noise schedules are chosen by."""
+    """Does each task's return rise smoothly from random to demonstrator level?
+
+    The criterion noise schedules are chosen by."""
+    from vintix.collect.calibrate import noise_free_return
     from vintix.data.plot import SMOOTH_CORRELATION, SMOOTH_JUMP, SMOOTH_RISE, smoothness
 
     try:
-        results, skipped = smoothness(root, bins, reference, own_expert)
+        results, skipped = smoothness(root, bins, reference, noise_free_return if own_expert else None)
     except (VintixError, ValueError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     table = Table(title=f"smoothness over {bins} bins of each history (worst history per task; smooth: rank "
                         f"correlation >= {SMOOTH_CORRELATION}, largest jump <= {SMOOTH_JUMP}, last bin - first "
                         f">= {SMOOTH_RISE})")
@@ -576,7 +598,7 @@ def data_fit_schedule(
     try:
         fitted, skipped = fit_schedules(root, knots)
     except (VintixError, ValueError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     table = Table(title="noise schedule knots: ε at evenly spaced points of the noised history, placed so the "
                         "expected return rises linearly (fitted to the episodes' returns at their mean ε)")
     for column in ("task", "episodes", "knots"):
@@ -593,13 +615,17 @@ def data_fit_schedule(
 
 @app.command("train")
 def train_command(
-    config: Annotated[str, typer.Option(help="model preset (tiny, small, paper) or a YAML file of TrainConfig fields")] = "tiny",
-    data: Annotated[Optional[Path], typer.Option(help="dataset root (overrides the config)")] = None,
-    out: Annotated[Optional[Path], typer.Option(help="run directory; re-running the same command resumes")] = None,
-    settings: Annotated[Optional[list[str]], typer.Option(
-        "--set", metavar="FIELD=VALUE", help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
+    config: Annotated[str, typer.Option(
+        help="model preset (tiny, small, paper) or a YAML file of TrainConfig fields")] = "tiny",
+    data: Annotated[Path | None, typer.Option(help="dataset root (overrides the config)")] = None,
+    out: Annotated[Path | None, typer.Option(help="run directory; re-running the same command resumes")] = None,
+    settings: Annotated[list[str] | None, typer.Option(
+        "--set", metavar="FIELD=VALUE",
+        help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
 ) -> None:
-    """Train (or resume) a model by Algorithm Distillation. Many GPUs: torchrun --nproc-per-node N -m vintix.train (same options)."""
+    """Train (or resume) a model by Algorithm Distillation.
+
+    Many GPUs: torchrun --nproc-per-node N -m vintix train ... (same options)."""
     from vintix.evaluate import in_context_scorer
     from vintix.train import load_config, train
 
@@ -607,12 +633,13 @@ def train_command(
         train_config = load_config(config, {"data": data and str(data), "out": out and str(out)}, settings)
         train(train_config, scorer=in_context_scorer(train_config))
     except VintixError as error:
-        raise _fail(error)
+        raise _fail(error) from None
 
 
 @bench_app.command("train")
 def bench_train(
-    presets: Annotated[Optional[list[str]], typer.Argument(metavar="[PRESETS]...", help="model presets (default: tiny small)")] = None,
+    presets: Annotated[list[str] | None, typer.Argument(
+        metavar="[PRESETS]...", help="model presets (default: tiny small)")] = None,
     batch_size: Annotated[int, typer.Option(min=1, help="windows per step")] = 4,
     steps: Annotated[int, typer.Option(min=1, help="timed steps per preset (after one warm-up step)")] = 3,
     device: Annotated[str, typer.Option(help="cpu or cuda")] = "cpu",
@@ -645,32 +672,31 @@ DEFAULT_COLLECT_BENCH_TASKS = ["InvertedPendulum-v5", "Hopper-v5", "HalfCheetah-
 
 @bench_app.command("collect")
 def bench_collect(
-    task_names: Annotated[Optional[list[str]], typer.Argument(
+    task_names: Annotated[list[str] | None, typer.Argument(
         metavar="[TASKS]...", help="tasks (default: InvertedPendulum, Hopper, HalfCheetah, IB p=40)")] = None,
     steps: Annotated[int, typer.Option(min=1, help="env steps per measurement")] = 20_000,
-    envs_per_batch: Annotated[Optional[int], typer.Option(
+    envs_per_batch: Annotated[int | None, typer.Option(
         min=1, help="histories stepped together (default: the collector's)")] = None,
     repeats: Annotated[int, typer.Option(min=1, help="alternating raw/collector measurements; medians kept")] = 3,
-    out: Annotated[Optional[Path], typer.Option(help="also write the rates as a CSV table (what --plan reads)")] = None,
+    out: Annotated[Path | None, typer.Option(help="also write the rates as a CSV table (what --plan reads)")] = None,
 ) -> None:
     """Collector steps/s against the raw env's, each in one process, measured side by side (tasks without
     a demonstrator: uniform-random play's rate only)."""
-    import dataclasses
     import os
 
     import torch
 
-    from vintix.collect import CollectionPlan
     from vintix.collect.bench import benchmark_collection, write_rates
+    from vintix.collect.collector import DEFAULT_ENVS_PER_BATCH
 
     torch.set_num_threads(1)  # one process per core, as `vintix collect --workers` runs
-    batch = envs_per_batch or next(f.default for f in dataclasses.fields(CollectionPlan) if f.name == "envs_per_batch")
+    batch = envs_per_batch or DEFAULT_ENVS_PER_BATCH
     try:
         specs = _runnable_tasks(task_names or DEFAULT_COLLECT_BENCH_TASKS)
         if out is not None:
             check_output_path(out)
     except VintixError as error:
-        raise _fail(error)
+        raise _fail(error) from None
     results = benchmark_collection([s.name for s in specs], steps, batch, repeats)
     table = Table(title=f"collection speed in one process, {batch} histories per batch, median of {repeats} "
                         f"(load average {os.getloadavg()[0]:.2f})")
@@ -687,11 +713,13 @@ def bench_collect(
 
 @bench_app.command("infer")
 def bench_infer(
-    presets: Annotated[Optional[list[str]], typer.Argument(metavar="[PRESETS]...", help="model presets (default: tiny small paper)")] = None,
-    envs: Annotated[Optional[list[int]], typer.Option(min=1, help="batch sizes (default: 1 and 16)")] = None,
+    presets: Annotated[list[str] | None, typer.Argument(
+        metavar="[PRESETS]...", help="model presets (default: tiny small paper)")] = None,
+    envs: Annotated[list[int] | None, typer.Option(min=1, help="batch sizes (default: 1 and 16)")] = None,
     repeats: Annotated[int, typer.Option(min=1, help="timed cached steps per measurement (median)")] = 20,
-    recompute: Annotated[bool, typer.Option(help="also time a full-window recompute (minutes at the paper's size)")] = True,
-    threads: Annotated[Optional[int], typer.Option(min=1, help="torch intra-op threads (default: torch's)")] = None,
+    recompute: Annotated[bool, typer.Option(
+        help="also time a full-window recompute (minutes at the paper's size)")] = True,
+    threads: Annotated[int | None, typer.Option(min=1, help="torch intra-op threads (default: torch's)")] = None,
 ) -> None:
     """Agent step latency and throughput: KV cache (first-full vs steady) vs full-window recompute."""
     import os
@@ -723,7 +751,8 @@ def bench_infer(
                                     (1 if name == "paper" else 3) if recompute and recompute_bytes < memory / 2 else 0)
             speedup = timing.cache_speedup
             table.add_row(name, f"{timing.parameters / 1e6:.1f}M", str(timing.window), str(batch),
-                          f"{timing.first_full_ms:.2f}", f"{timing.steady_ms:.2f}", f"{timing.steady_over_first_full:.2f}",
+                          f"{timing.first_full_ms:.2f}", f"{timing.steady_ms:.2f}",
+                          f"{timing.steady_over_first_full:.2f}",
                           "—" if timing.recompute_ms is None else f"{timing.recompute_ms:,.0f}",
                           "—" if speedup is None else f"{speedup:,.0f}×", f"{timing.env_steps_per_second:,.0f}")
     console.print(table)
@@ -740,16 +769,20 @@ def eval_command(
     checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (model.json + model.safetensors), a training "
                                              "run (its best checkpoint, else its newest), or a shipped model: "
                                              "cpu-suite or point-goal")],
-    tasks: Annotated[list[str], typer.Option(help="task names, domains or splits (train/test); repeat or comma-separate")],
+    tasks: Annotated[list[str], typer.Option(
+        help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
     shots: Annotated[int, typer.Option(help="episodes per run")] = 50,
     seeds: Annotated[int, typer.Option(help="runs per task (Meta-World: one hidden goal each)")] = 3,
     first_seed: Annotated[int, typer.Option(help="env seed of the first run")] = 0,
-    variation: Annotated[Optional[list[str]], typer.Option(help="MuJoCo physics variation NAME=VALUE, e.g. viscosity=0.05")] = None,
-    prompt_from: Annotated[Optional[Path], typer.Option(help="dataset root: prompt with the start of a stored history")] = None,
-    prompt_steps: Annotated[Optional[int], typer.Option(help="prompt length (default: half the window)")] = None,
+    variation: Annotated[list[str] | None, typer.Option(
+        help="MuJoCo physics variation NAME=VALUE, e.g. viscosity=0.05")] = None,
+    prompt_from: Annotated[Path | None, typer.Option(
+        help="dataset root: prompt with the start of a stored history")] = None,
+    prompt_steps: Annotated[int | None, typer.Option(help="prompt length (default: half the window)")] = None,
     reference: Annotated[str, typer.Option(help="reference table of the printed summary: paper or ours")] = "paper",
-    label: Annotated[Optional[str], typer.Option(help="name of this model in reports (default: checkpoint folder)")] = None,
+    label: Annotated[str | None, typer.Option(
+        help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
     reward_input: Annotated[str, typer.Option(
         metavar="true|zero|shuffled", help="rewards fed back to the model: the env's (true), zeros, or the episode's "
@@ -758,7 +791,7 @@ def eval_command(
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
                                          "tiny ops that a second thread slows down on a busy machine")] = 1,
-    ray: Annotated[Optional[str], typer.Option(help=_RAY_HELP)] = None,
+    ray: Annotated[str | None, typer.Option(help=_RAY_HELP)] = None,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
@@ -766,7 +799,7 @@ def eval_command(
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.evaluate import EvalConfig, evaluate, parse_variation, shot_curves, shots_to_show, summarize
-    from vintix.evaluate.scores import check_table
+    from vintix.tasks.scores import check_table
 
     torch.set_num_threads(threads)
     try:
@@ -780,7 +813,7 @@ def eval_command(
             rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress, ray)
         summary = summarize(rows, reference)
     except (VintixError, ValueError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     for note in notes:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     if reward_input != "true":
@@ -801,7 +834,8 @@ def eval_command(
         table.add_row(*cells)
     console.print(table)
     shown = shots_to_show(shots)
-    per_shot = Table(title=f"in context: mean normalized score ({reference} reference) at each shot, over tasks and runs")
+    per_shot = Table(
+        title=f"in context: mean normalized score ({reference} reference) at each shot, over tasks and runs")
     per_shot.add_column("domain")
     for shot in shown:
         per_shot.add_column(f"shot {shot}", justify="right")
@@ -810,7 +844,8 @@ def eval_command(
         per_shot.add_row(domain, *(f"{curve[shot - 1]:.2f}" if shot <= len(curve) else "" for shot in shown))
         if domain in successes:
             success = successes[domain]
-            per_shot.add_row("  success rate", *(_rate(success[shot - 1]) if shot <= len(success) else "" for shot in shown))
+            per_shot.add_row("  success rate",
+                             *(_rate(success[shot - 1]) if shot <= len(success) else "" for shot in shown))
     console.print(per_shot)
     console.print(f"wrote {len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}")
 
@@ -822,7 +857,8 @@ def _rate(rate: float | None) -> str:
 
 @app.command("report")
 def report_command(
-    results: Annotated[list[Path], typer.Argument(help="`vintix eval` output folders (several: compared side by side)")],
+    results: Annotated[list[Path], typer.Argument(
+        help="`vintix eval` output folders (several: compared side by side)")],
     out: Annotated[Path, typer.Option(help="folder for report.md and figures/")] = Path("report"),
     reference: Annotated[str, typer.Option(help="reference table: paper or ours")] = "paper",
     plateau_shots: Annotated[int, typer.Option(min=1, help="k of the best-k-shot plateau (converged score)")] = 10,
@@ -833,7 +869,7 @@ def report_command(
     try:
         path, notes = write_report(results, out, reference, plateau_shots)
     except (VintixError, ValueError) as error:
-        raise _fail(error)
+        raise _fail(error) from None
     for note in notes:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     figures = sorted((out / "figures").rglob("*.png"))

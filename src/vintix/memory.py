@@ -15,7 +15,6 @@ import torch
 
 from vintix.errors import VintixError
 
-
 M = TypeVar("M", bound=torch.nn.Module)
 
 

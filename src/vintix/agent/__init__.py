@@ -4,5 +4,5 @@ from vintix.agent.agent import Agent, AgentInputError, AgentOutputError, AgentSt
 from vintix.agent.cache import KVCache, banded_forward, cached_backbone
 from vintix.agent.pretrained import resolve_checkpoint, shipped_models
 
-__all__ = ["Agent", "AgentInputError", "AgentOutputError", "AgentStateError", "AgentTask", "KVCache", "banded_forward", "cached_backbone",
-           "resolve_checkpoint", "resolve_task", "shipped_models"]
+__all__ = ["Agent", "AgentInputError", "AgentOutputError", "AgentStateError", "AgentTask", "KVCache", "banded_forward",
+           "cached_backbone", "resolve_checkpoint", "resolve_task", "shipped_models"]

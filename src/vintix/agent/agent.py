@@ -28,7 +28,7 @@ from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix
-from vintix.tasks import get_task, make_env
+from vintix.tasks import action_box, get_task, make_env
 from vintix.train.checkpoint import intact_alternative_hint
 
 
@@ -65,7 +65,7 @@ def _registry_action_bounds(task: str) -> tuple[np.ndarray, np.ndarray]:
     # Physics variations leave the action space alone, so one env per task name tells the bounds.
     env = make_env(task)
     try:
-        space = env.action_space
+        space = action_box(env.action_space)
         return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
     finally:
         env.close()
@@ -248,10 +248,11 @@ class Agent:
         if action_spaces is not None and len(action_spaces) != len(tasks):
             raise AgentInputError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces; give one per task")
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
-        self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces)]
+        self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces, strict=True)]
         self._regroup()
         self._prev_action = {
-            g: torch.zeros(len(b.envs), self.model.groups[g].act_dim, device=self.device) for g, b in self._groups.items()
+            g: torch.zeros(len(b.envs), self.model.groups[g].act_dim, device=self.device)
+            for g, b in self._groups.items()
         }
         self.cache = KVCache.for_model(self.model, len(self.tasks))
         self._generator.manual_seed(self.seed)
@@ -280,10 +281,11 @@ class Agent:
         # Each env's previous action lives in its group's rows; gather them per old env index first.
         previous: dict[int, torch.Tensor] = {}
         for group, batch in self._groups.items():
-            previous.update(zip(batch.envs.tolist(), self._prev_action[group]))
+            previous.update(zip(batch.envs.tolist(), self._prev_action[group], strict=True))
         self.tasks = [self.tasks[i] for i in envs]
         self._regroup()
-        self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()]) for g, b in self._groups.items()}
+        self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()])
+                             for g, b in self._groups.items()}
         self.cache.keep(torch.tensor(envs, device=self.device))
 
     def _check(self, what: str, env: int, values: np.ndarray, shape: tuple[int, ...]) -> None:
@@ -358,20 +360,20 @@ class Agent:
         tokens = self._tokens([o[None] for o in observations], prev_actions, rewards[:, None], starts[:, None])
         hidden = cached_backbone(self.model, tokens, self.cache)[:, -1]
         actions: list[np.ndarray] = [np.empty(0)] * batch
-        for group, batch in self._groups.items():
-            mean, log_std = self.model.action_distribution(group, hidden[batch.envs])
+        for group, members in self._groups.items():
+            mean, log_std = self.model.action_distribution(group, hidden[members.envs])
             if log_std is not None:  # a gaussian policy acts on a draw
                 mean = mean + log_std.exp() * torch.randn(mean.shape, generator=self._generator, device=mean.device)
-            action = torch.clamp(mean, batch.action_low, batch.action_high)
+            action = torch.clamp(mean, members.action_low, members.action_high)
             finite = torch.isfinite(action).all(dim=1)  # clamp passes NaN through
             if not finite.all():
-                env = int(batch.envs[~finite][0])
+                env = int(members.envs[~finite][0])
                 raise AgentOutputError(
                     f"env {env} ({self.tasks[env].task}): the model's action is NaN/inf for finite inputs; its "
                     "weights are damaged or it overflowed. Load another checkpoint (an earlier one of the run)"
                 )
             self._prev_action[group] = action
-            for i, a in zip(batch.envs.tolist(), action.cpu().numpy()):
+            for i, a in zip(members.envs.tolist(), action.cpu().numpy(), strict=True):
                 actions[i] = a
         return actions
 
@@ -396,8 +398,9 @@ class Agent:
             raise AgentInputError("every env's prompt must have the same number of steps")
         if self.cache.length + steps > self.cache.window:  # one chunk must not wrap around the sliding window
             raise AgentInputError(
-                f"a prompt of {steps} steps after {self.cache.length} does not fit the model's {self.cache.window}-step "
-                "window; prompt with at most the window (vintix eval: a smaller --prompt-steps)"
+                f"a prompt of {steps} steps after {self.cache.length} does not fit the model's "
+                f"{self.cache.window}-step window; prompt with at most the window "
+                "(vintix eval: a smaller --prompt-steps)"
             )
         for i, task in enumerate(self.tasks):
             spec = self.model.groups[task.group]

@@ -18,6 +18,7 @@ import statistics
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import torch
@@ -131,8 +132,8 @@ def time_inference(preset_name: str, envs: int, repeats: int, recompute_repeats:
     # Interleaved, so that load from other jobs on the machine hits both alike.
     first_full, steady = [], []
     for i in range(repeats):
-        first_full.append(_median_ms(step, 1, lambda: set_cache_state(cache, window - 1)))
-        steady.append(_median_ms(step, 1, lambda: set_cache_state(cache, 4 * window - 1 + i)))
+        first_full.append(_median_ms(step, 1, partial(set_cache_state, cache, window - 1)))
+        steady.append(_median_ms(step, 1, partial(set_cache_state, cache, 4 * window - 1 + i)))
     recompute = recompute_step_ms(model, envs, recompute_repeats) if recompute_repeats else None
     return InferenceTiming(preset_name, count_parameters(model), window, envs, statistics.median(first_full),
                            statistics.median(steady), recompute)

@@ -11,4 +11,5 @@ from vintix.collect.collector import (
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.collect.recipe import load_recipe
 
-__all__ = ["CollectionError", "CollectionPlan", "CollectionSettingsError", "HistorySummary", "NoiseSchedule", "collect", "history_seeds", "load_recipe", "mix_action"]
+__all__ = ["CollectionError", "CollectionPlan", "CollectionSettingsError", "HistorySummary", "NoiseSchedule", "collect",
+           "history_seeds", "load_recipe", "mix_action"]

@@ -32,7 +32,6 @@ from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env
 from vintix.tasks.check import random_policy_returns
 
-
 RATES_FIELDS = ["task", "envs_per_batch", "raw_steps_per_s", "collect_steps_per_s", "measured_on", "command"]
 
 
@@ -64,7 +63,8 @@ def write_rates(results: list[CollectBenchmark], path: Path, command: str) -> Pa
     writer.writeheader()
     today = datetime.date.today().isoformat()
     for r in results:
-        writer.writerow({"task": r.task, "envs_per_batch": r.envs_per_batch, "raw_steps_per_s": round(r.raw_steps_per_s),
+        writer.writerow({"task": r.task, "envs_per_batch": r.envs_per_batch,
+                         "raw_steps_per_s": round(r.raw_steps_per_s),
                          "collect_steps_per_s": "" if r.collect_steps_per_s is None else round(r.collect_steps_per_s),
                          "measured_on": today, "command": command})
     atomic_write_text(path, buffer.getvalue())
@@ -76,9 +76,9 @@ def read_rates(path: Path | None = None) -> dict[str, CollectBenchmark]:
     path = path or rates_path()
     try:
         with open(path, newline="") as file:
-            return {row["task"]: CollectBenchmark(row["task"], int(row["envs_per_batch"]),
-                                                  float(row["raw_steps_per_s"]),
-                                                  float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
+            return {row["task"]: CollectBenchmark(
+                        row["task"], int(row["envs_per_batch"]), float(row["raw_steps_per_s"]),
+                        float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
                     for row in csv.DictReader(file)}
     except (OSError, UnicodeDecodeError, KeyError, TypeError, ValueError) as error:
         raise VintixError(f"{path}: not a readable rates table ({type(error).__name__}: {error}); it needs the columns "
@@ -94,7 +94,7 @@ def replay_seconds(task: str, history: Path) -> float:
     start = time.perf_counter()
     env = make_env(task, seed=env_seed)
     env.reset()
-    for action, end in zip(rows["action"], ends):
+    for action, end in zip(rows["action"], ends, strict=True):
         env.step(action)
         if end:
             env.reset()
@@ -136,6 +136,7 @@ def benchmark_collection(tasks: list[str], steps: int, envs_per_batch: int, repe
             raw = [random_policy_returns(name, episodes).steps_per_second for _ in range(repeats)]
             results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), None))
             continue
-        raw, collected = zip(*(measure_once(name, steps, envs_per_batch, demonstrator) for _ in range(repeats)))
-        results.append(CollectBenchmark(name, envs_per_batch, statistics.median(raw), statistics.median(collected)))
+        rates = [measure_once(name, steps, envs_per_batch, demonstrator) for _ in range(repeats)]
+        results.append(CollectBenchmark(name, envs_per_batch, statistics.median(r for r, _ in rates),
+                                        statistics.median(c for _, c in rates)))
     return results

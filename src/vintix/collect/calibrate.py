@@ -81,7 +81,8 @@ def fit_schedules(root: PathLike, count: int = 11) -> tuple[list[FittedSchedule]
         for path in task.history_paths:
             with LearningHistory(path) as history:
                 parts.append(episode_noise(history))
-        epsilons, returns, lengths = (np.concatenate(column) for column in zip(*parts)) if parts else [np.empty(0)] * 3
+        epsilons, returns, lengths = ((np.concatenate(column) for column in zip(*parts, strict=True)) if parts
+                                      else [np.empty(0)] * 3)
         try:
             fitted.append(FittedSchedule(task.task_name, len(returns), fit_knots(epsilons, returns, lengths, count)))
         except ValueError as error:

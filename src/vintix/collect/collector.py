@@ -39,7 +39,10 @@ from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, 
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
-from vintix.tasks import TaskSpec, get_task, make_env
+from vintix.tasks import TaskSpec, action_box, get_task, make_env
+
+DEFAULT_ENVS_PER_BATCH = 16
+"""`CollectionPlan.envs_per_batch` unless given."""
 
 
 class CollectionError(VintixError, ValueError):
@@ -62,7 +65,7 @@ class CollectionPlan:
     schedule: NoiseSchedule = NoiseSchedule()
     seed: int = 0
     """Base seed; history i of task t is seeded from (seed, t, i)."""
-    envs_per_batch: int = 16
+    envs_per_batch: int = DEFAULT_ENVS_PER_BATCH
     """Histories stepped in lockstep in one process (one batched demonstrator call per step; more
     histories per call leave more of the process's time to the simulator, `vintix bench collect`)."""
     behaviour: str = "expert"
@@ -78,9 +81,11 @@ class CollectionPlan:
             raise CollectionError(f"{self.task}: {', '.join(bad)}; histories, steps and envs_per_batch must be >= 1, "
                                   "seed >= 0")
         if self.schedule.pilot_steps and self.schedule.knots:
-            raise CollectionError(f"{self.task}: give knots or pilot_steps, not both (a pilot fits each history's knots)")
+            raise CollectionError(
+                f"{self.task}: give knots or pilot_steps, not both (a pilot fits each history's knots)")
         if self.behaviour not in BEHAVIOURS:
-            raise CollectionError(f"{self.task}: unknown behaviour {self.behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
+            raise CollectionError(
+                f"{self.task}: unknown behaviour {self.behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
         if self.behaviour != "expert" and self.schedule.pilot_steps:
             raise CollectionError(f"{self.task}: pilot_steps fit knots to the expert's answer to noise; a "
                                   f"{self.behaviour} history has no such answer: drop pilot_steps")
@@ -185,9 +190,10 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     try:
         schedules = _history_schedules(plan, envs, demonstrator, [s.pilot_noise for s in seeds],
                                        f"{label} pilot", progress_position)
-        writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim, demonstrator_actions=True,
+        writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim,
+                                         demonstrator_actions=True,
                                          attrs=plan.recorded_settings(i) | schedule.recorded())
-                   for i, schedule in zip(indices, schedules)]
+                   for i, schedule in zip(indices, schedules, strict=True)]
         # One column per history only when pilots gave them schedules of their own: a 1M-step batch of 16
         # would otherwise hold 16 copies of the same 8 MB column.
         distinct = schedules if plan.schedule.pilot_steps else schedules[:1]
@@ -219,13 +225,15 @@ def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrat
 
     _play(envs, demonstrator, epsilon[:, None], rngs, label, progress_position, keep)
     try:
-        return [replace(plan.schedule, knots=pilot_knots(epsilon, reward[:, i], step_num[:, i])) for i in range(len(envs))]
+        return [replace(plan.schedule, knots=pilot_knots(epsilon, reward[:, i], step_num[:, i]))
+                for i in range(len(envs))]
     except ValueError as error:
         raise CollectionError(f"{plan.task}: {error}") from error
 
 
-def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray, rngs: Sequence[np.random.Generator],
-          label: str, progress_position: int, on_block: Callable[[_Block, int, int], None],
+def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray,
+          rngs: Sequence[np.random.Generator], label: str, progress_position: int,
+          on_block: Callable[[_Block, int, int], None],
           demonstrator_rngs: Sequence[np.random.Generator] = ()) -> None:
     """Play `envs` from a reset for ``len(epsilons)`` steps, env i at noise ``epsilons[t, i]`` (or all at
     ``epsilons[t, 0]`` when it has one column), handing each full block of rows to
@@ -242,10 +250,10 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
     if learner is not None:
         learner.begin(envs, demonstrator_rngs)
     total = len(epsilons)
-    low, high = envs[0].action_space.low, envs[0].action_space.high
-    obs_dim, act_dim = envs[0].observation_space.shape[0], len(low)
-    block = _Block.empty(min(BLOCK_STEPS, total), len(envs), obs_dim, act_dim)
+    space = action_box(envs[0].action_space)
+    low, high = space.low, space.high
     observations = np.stack([env.reset()[0] for env in envs])
+    block = _Block.empty(min(BLOCK_STEPS, total), len(envs), observations.shape[1], len(low))
     step_nums = np.zeros(len(envs), dtype=np.int64)
     for t in tqdm(range(total), desc=label, position=progress_position, leave=False, mininterval=1.0):
         k = t % len(block.step_num)
@@ -325,8 +333,11 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
     root = Path(root)
     if workers < 1:
         raise CollectionError(f"workers must be >= 1, got {workers}")
+    # Fail before writing anything: a missing Ray or an unreachable cluster, a task without a demonstrator.
+    if ray is not None:
+        cluster.connect(ray)
     if demonstrator is None:
-        for plan in plans:  # fail before writing anything for a task without one
+        for plan in plans:
             load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour)
     check_output_kind(root, "dataset")
     with folder_lock(root, "vintix collect"):
@@ -335,8 +346,6 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
 
 def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator: Demonstrator | None,
              ray: str | None) -> list[HistorySummary]:
-    if ray is not None:
-        cluster.connect(ray)  # a missing Ray or an unreachable cluster fails before anything is written
     jobs = []
     for plan in plans:
         spec = get_task(plan.task)
@@ -367,8 +376,8 @@ def _collect_on_ray(jobs: list[tuple[CollectionPlan, list[int], Path, Demonstrat
     calls = [((plan, indices, root.absolute(), demonstrator, 0),) for plan, indices, _, demonstrator in jobs]
     for _ in cluster.map_tasks(_collect_batch_in_worker, calls, "history batches"):
         pass
-    missing = [path for plan, indices, *_ in jobs for path in (history_path(root, get_task(plan.task), i) for i in indices)
-               if not path.exists()]
+    missing = [path for plan, indices, *_ in jobs
+               for path in (history_path(root, get_task(plan.task), i) for i in indices) if not path.exists()]
     if missing:
         raise CollectionError(f"Ray workers wrote {len(missing)} histories that this machine cannot see under {root} "
                               f"(e.g. {missing[0]}): --out must be a folder every node of the cluster shares")

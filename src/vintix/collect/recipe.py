@@ -37,17 +37,20 @@ def recipe_path(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if path.is_file():
         return path
-    shipped = resources.files("vintix.collect").joinpath("recipes", f"{name_or_path}.yaml")
+    shipped = resources.files("vintix.collect").joinpath("recipes").joinpath(f"{name_or_path}.yaml")
     if shipped.is_file():
         return Path(str(shipped))
-    names = sorted(p.name.removesuffix(".yaml") for p in resources.files("vintix.collect").joinpath("recipes").iterdir())
-    raise FileNotFoundError(f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {names}")
+    names = sorted(p.name.removesuffix(".yaml")
+                   for p in resources.files("vintix.collect").joinpath("recipes").iterdir())
+    raise FileNotFoundError(
+        f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {names}")
 
 
 def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
     unknown = set(settings) - PLAN_KEYS - SCHEDULE_KEYS
     if unknown:
-        raise CollectionError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(PLAN_KEYS | SCHEDULE_KEYS)}")
+        raise CollectionError(
+            f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(PLAN_KEYS | SCHEDULE_KEYS)}")
     needed = sorted({"histories", "steps"} - set(settings))
     if needed:
         raise CollectionError(f"{where}: no {' or '.join(needed)} (set them under 'defaults:' or the task)")
@@ -69,7 +72,8 @@ def load_recipe(name_or_path: str | Path) -> list[CollectionPlan]:
         raise CollectionError(f"{path}: a recipe needs a non-empty 'tasks:' mapping (and optionally 'defaults:')")
     defaults = recipe.get("defaults") or {}
     if not isinstance(defaults, dict) or not all(isinstance(v, dict) or v is None for v in recipe["tasks"].values()):
-        raise CollectionError(f"{path}: 'defaults:' and each task's settings must be mappings, e.g. reach-v3: {{steps: 500}}")
+        raise CollectionError(
+            f"{path}: 'defaults:' and each task's settings must be mappings, e.g. reach-v3: {{steps: 500}}")
     plans: dict[str, CollectionPlan] = {}
     for selector, settings in recipe["tasks"].items():
         for spec in resolve_tasks([selector]):

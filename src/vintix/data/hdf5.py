@@ -262,9 +262,9 @@ def inspect_layout(file: h5py.File) -> Layout:
     if not claimed and not log.messages():
         log.add("empty", "contains no step groups", "delete it")
     groups.sort(key=lambda g: g.start)
-    obs_dim, act_dim = next(iter(dims)) if len(dims) == 1 else (None, None)
+    agreed_obs_dim, agreed_act_dim = next(iter(dims)) if len(dims) == 1 else (None, None)
     demonstrator = next(iter(demonstrator_names)) if len(demonstrator_names) == 1 else None
-    return Layout(groups, obs_dim, act_dim, log.messages(), demonstrator)
+    return Layout(groups, agreed_obs_dim, agreed_act_dim, log.messages(), demonstrator)
 
 
 # --------------------------------------------------------------------------------------------
@@ -293,12 +293,14 @@ class LearningHistoryWriter:
     """
 
     def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS,
-                 attrs: dict[str, int | float | str | list[float]] | None = None, demonstrator_actions: bool = False) -> None:
+                 attrs: dict[str, int | float | str | list[float]] | None = None,
+                 demonstrator_actions: bool = False) -> None:
         self.path = Path(path)
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
         if not (_is_dim(obs_dim) and _is_dim(act_dim)):
-            raise DatasetError(self.path, f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
+            raise DatasetError(self.path,
+                               f"obs_dim and act_dim must be positive integers, got {obs_dim!r} and {act_dim!r}")
         if not (_is_dim(chunk_size) and chunk_size <= MAX_GROUP_ROWS):
             raise DatasetError(self.path, f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got "
                                f"{chunk_size!r}")

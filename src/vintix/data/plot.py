@@ -6,9 +6,10 @@ over each of `bins` equal fractions of the history's *steps*, so a bin always ha
 long the episodes are (a 30k-step Swimmer history has only 30 episodes). A task's curve is the IQM
 over its histories; a domain's is the IQM over all the histories of its tasks, so every history
 weighs the same. The reference table is ours by default (our demonstrators' measured returns: the
-paper's are from other env versions), or the paper's. With `own_expert`, each history's demonstrator
-level is instead its own noise-free tail: the fair scale where histories of one task play different
-variants (Meta-World's hidden goals), whose demonstrator returns differ several-fold.
+paper's are from other env versions), or the paper's. With `history_expert`, each history's
+demonstrator level is instead read from the history itself, e.g. from its own noise-free tail
+(`vintix.collect.calibrate.noise_free_return`): the fair scale where histories of one task play
+different variants (Meta-World's hidden goals), whose demonstrator returns differ several-fold.
 
 The same curves give the smoothness criterion a noise schedule is chosen by (`smoothness`): a
 history should rise steadily (rank correlation of return with position), without abrupt jumps
@@ -19,6 +20,7 @@ linear decay often fails.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +31,7 @@ from scipy.stats import spearmanr, trim_mean
 from vintix.atomic import atomic_path
 from vintix.data.hdf5 import LearningHistory, PathLike, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
+from vintix.tasks.scores import reference
 
 SMOOTH_CORRELATION = 0.9
 """A smooth history's return rises with its position: Spearman correlation at least this, over the bins."""
@@ -37,6 +40,9 @@ SMOOTH_JUMP = 0.3
 SMOOTH_RISE = 0.6
 """...and it rises at least this much from its first bin to its last (from near random to near the
 demonstrator: a schedule that drops the noise at once is steady but teaches no improvement)."""
+
+HistoryExpert = Callable[[LearningHistory], float]
+"""A history's own demonstrator level, read from the history (`vintix.collect.calibrate.noise_free_return`)."""
 
 
 def normalized_curve(episode_returns: np.ndarray, episode_lengths: np.ndarray, random: float, expert: float,
@@ -70,14 +76,12 @@ def _plot(curves: dict[str, np.ndarray], title: str, path: Path) -> Path:
     return path
 
 
-def task_curves(root: PathLike, bins: int, reference_table: str = "ours", own_expert: bool = False
-                ) -> tuple[dict[str, dict[str, np.ndarray]], list[str]]:
+def task_curves(root: PathLike, bins: int, reference_table: str = "ours",
+                history_expert: HistoryExpert | None = None) -> tuple[dict[str, dict[str, np.ndarray]], list[str]]:
     """Domain -> task -> normalized curves of its histories ([histories, bins]), and the tasks skipped:
     unknown to the registry, or without a reference in `reference_table` ('ours' or 'paper').
-    `own_expert`: each history's expert level is the mean return of its noise-free episodes."""
-    from vintix.collect.calibrate import noise_free_return
-    from vintix.evaluate.scores import reference
-
+    `history_expert`: each history's expert level is what it returns for the history (e.g. the mean
+    return of its noise-free episodes) instead of the table's."""
     if bins < 1:
         raise VintixError(f"bins must be >= 1, got {bins}")
     by_domain: dict[str, dict[str, np.ndarray]] = defaultdict(dict)
@@ -97,17 +101,17 @@ def task_curves(root: PathLike, bins: int, reference_table: str = "ours", own_ex
                 lengths = history.episode_lengths()
                 if len(returns) > 1:  # the history's end usually cuts its last episode short: a fake dip
                     returns, lengths = returns[:-1], lengths[:-1]
-                expert = noise_free_return(history) if own_expert else scores.expert
+                expert = scores.expert if history_expert is None else history_expert(history)
                 curves.append(normalized_curve(returns, lengths, scores.random, expert, bins))
         by_domain[task.domain][task.task_name] = np.array(curves)
     return by_domain, skipped
 
 
 def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table: str = "ours",
-                 own_expert: bool = False) -> tuple[list[Path], list[str]]:
+                 history_expert: HistoryExpert | None = None) -> tuple[list[Path], list[str]]:
     """One PNG per task and one per domain under `out`, normalized by `reference_table` ('ours' or
-    'paper'; see `task_curves` for `own_expert`). Returns the figures and the tasks skipped."""
-    by_domain, skipped = task_curves(root, bins, reference_table, own_expert)
+    'paper'; see `task_curves` for `history_expert`). Returns the figures and the tasks skipped."""
+    by_domain, skipped = task_curves(root, bins, reference_table, history_expert)
     out = Path(out)
     written = []
     for domain, tasks in sorted(by_domain.items()):
@@ -140,11 +144,11 @@ class Smoothness:
                 and self.end - self.start >= SMOOTH_RISE)
 
 
-def smoothness(root: PathLike, bins: int = 10, reference_table: str = "ours", own_expert: bool = False
-               ) -> tuple[list[Smoothness], list[str]]:
-    """The smoothness criterion of every task of a dataset (see `Smoothness`; `own_expert`: see
+def smoothness(root: PathLike, bins: int = 10, reference_table: str = "ours",
+               history_expert: HistoryExpert | None = None) -> tuple[list[Smoothness], list[str]]:
+    """The smoothness criterion of every task of a dataset (see `Smoothness`; `history_expert`: see
     `task_curves`), and the tasks skipped."""
-    by_domain, skipped = task_curves(root, bins, reference_table, own_expert)
+    by_domain, skipped = task_curves(root, bins, reference_table, history_expert)
     results = []
     for tasks in by_domain.values():
         for name, curves in sorted(tasks.items()):

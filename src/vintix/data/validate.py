@@ -99,7 +99,8 @@ def task_mismatch(recorded: object, task: str | None) -> str | None:
     another task's folder of the same dims would otherwise train as that task."""
     if task is None or recorded is None or recorded == task:
         return None
-    return f"was collected on task {recorded!r} but sits in the folder of task {task!r}; move it to {recorded!r}'s folder"
+    return (f"was collected on task {recorded!r} but sits in the folder of task {task!r}; "
+            f"move it to {recorded!r}'s folder")
 
 
 def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: str | None = None,

@@ -2,7 +2,6 @@
 
 from vintix.demonstrators.base import BEHAVIOURS, Demonstrator, load_demonstrator
 from vintix.demonstrators.posterior import GoalInferringDemonstrator, PosteriorSamplingDemonstrator
-from vintix.demonstrators.scores import MeasuredScore, our_reference_scores, read_scores
 from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
 from vintix.demonstrators.trained import TrainedDemonstrator
 
@@ -11,10 +10,7 @@ __all__ = [
     "GoalInferringDemonstrator",
     "PosteriorSamplingDemonstrator",
     "Demonstrator",
-    "MeasuredScore",
     "ScriptedMetaWorldDemonstrator",
     "TrainedDemonstrator",
     "load_demonstrator",
-    "our_reference_scores",
-    "read_scores",
 ]

@@ -27,7 +27,7 @@ from vintix.demonstrators.base import load_demonstrator
 from vintix.demonstrators.posterior import GoalConditionedExpert
 from vintix.demonstrators.scores import episode_outcomes
 from vintix.errors import VintixError
-from vintix.tasks import get_task, make_env
+from vintix.tasks import action_box, get_task, make_env
 
 MEAN_GOAL_DRAWS = 50
 MEAN_GOAL_FIRST_SEED = 1_000_000
@@ -78,7 +78,8 @@ class AimedExpert:
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         goals = np.stack([env.unwrapped.true_goal if self.goal is None else self.goal for env in envs])  # type: ignore[attr-defined]
-        return np.clip(self.expert.act_toward(observations, goals), envs[0].action_space.low, envs[0].action_space.high)
+        space = action_box(envs[0].action_space)
+        return np.clip(self.expert.act_toward(observations, goals), space.low, space.high)
 
 
 def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, command: str = "") -> GoalBlindResult:

@@ -167,7 +167,7 @@ class PosteriorSamplingDemonstrator:
         self._posteriors = [
             _GoalPosterior(env.unwrapped.goal_box(), rng, self.settings,  # type: ignore[attr-defined]
                            env.unwrapped.goal_prior(rng, self.settings.candidates))  # type: ignore[attr-defined]
-            for env, rng in zip(envs, rngs)
+            for env, rng in zip(envs, rngs, strict=True)
         ]
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:

@@ -21,7 +21,8 @@ class ScriptedMetaWorldDemonstrator:
     """The scripted policy of one Meta-World task."""
 
     def __init__(self, task: str) -> None:
-        self.policy = ENV_POLICY_MAP[task]()
+        # The map holds each task's concrete policy class; metaworld types its values as the abstract base.
+        self.policy = ENV_POLICY_MAP[task]()  # type: ignore[abstract]
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         return self.act_toward(observations, np.stack([env.unwrapped.true_goal for env in envs]))  # type: ignore[attr-defined]

@@ -15,7 +15,7 @@ import json
 from collections.abc import Callable, Sequence
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -26,12 +26,13 @@ from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.distributions import DiagGaussianDistribution
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
-from stable_baselines3.sac.policies import SACPolicy
+from stable_baselines3.common.running_mean_std import RunningMeanStd
 from stable_baselines3.common.vec_env import VecNormalize
+from stable_baselines3.sac.policies import SACPolicy
 
 from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import VintixError
-from vintix.tasks import TaskSpec, make_env
+from vintix.tasks import TaskSpec, action_box, make_env
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"PPO": PPO, "SAC": SAC}
 OBS_MEAN, OBS_VAR = "obs_rms.mean", "obs_rms.var"
@@ -62,8 +63,10 @@ def save_trained_policy(model: BaseAlgorithm, vec_normalize: VecNormalize | None
     tensors = {k: v.detach().cpu().contiguous() for k, v in _inference_module(model.policy).state_dict().items()}
     meta: dict[str, Any] = {"algorithm": type(model).__name__, "policy_kwargs": model.policy_kwargs, **info}
     if vec_normalize is not None:
-        tensors[OBS_MEAN] = torch.as_tensor(vec_normalize.obs_rms.mean, dtype=torch.float64)
-        tensors[OBS_VAR] = torch.as_tensor(vec_normalize.obs_rms.var, dtype=torch.float64)
+        statistics = vec_normalize.obs_rms  # one RunningMeanStd per key for a Dict observation space
+        assert isinstance(statistics, RunningMeanStd), "every vintix task observes a flat Box"
+        tensors[OBS_MEAN] = torch.as_tensor(statistics.mean, dtype=torch.float64)
+        tensors[OBS_VAR] = torch.as_tensor(statistics.var, dtype=torch.float64)
         meta["obs_normalization"] = {"clip": vec_normalize.clip_obs, "epsilon": vec_normalize.epsilon}
     with atomic_path(tensors_path) as temporary:
         save_file(tensors, str(temporary))
@@ -122,18 +125,22 @@ class TrainedDemonstrator:
         self.metadata, tensors = _read_weights(tensors_path, meta_path)
         env = make_env(spec.name)
         self.observation_dims = int(self.metadata.get("observation_dims", 0))
-        observation_space, action_space = observation_view(env.observation_space, self.observation_dims), env.action_space
+        observation_space = observation_view(env.observation_space, self.observation_dims)
+        action_space = env.action_space
         env.close()
         policy_class = ALGORITHMS[self.metadata["algorithm"]].policy_aliases["MlpPolicy"]
         self.policy: BasePolicy = policy_class(
             observation_space, action_space, lr_schedule=lambda _: 0.0, **self.metadata["policy_kwargs"]
         )
         self.obs_mean, self.obs_var = tensors.pop(OBS_MEAN, None), tensors.pop(OBS_VAR, None)
+        if (self.obs_mean is None) != (self.obs_var is None):
+            raise VintixError(f"{tensors_path} holds only one of {OBS_MEAN} and {OBS_VAR}, the observation "
+                              f"statistics the policy was trained with; {_RESAVE}")
         try:
             _inference_module(self.policy).load_state_dict(tensors)
         except RuntimeError as error:  # missing, unexpected or misshapen tensors
-            raise VintixError(f"{tensors_path} does not fit the {self.metadata['algorithm']} policy that {meta_path.name} "
-                              f"describes for {spec.name!r}: {error}; {_RESAVE}") from None
+            raise VintixError(f"{tensors_path} does not fit the {self.metadata['algorithm']} policy that "
+                              f"{meta_path.name} describes for {spec.name!r}: {error}; {_RESAVE}") from None
         self.policy.set_training_mode(False)
         modules = deterministic_actor(self.policy)
         self._mlp = None if modules is None else NumpyMlp.from_modules(modules)
@@ -143,7 +150,7 @@ class TrainedDemonstrator:
         trained on those only, scaled as `VecNormalize.normalize_obs` did in training (saved statistics)."""
         if self.observation_dims:
             observations = observations[:, :self.observation_dims]
-        if self.obs_mean is None:
+        if self.obs_mean is None or self.obs_var is None:  # both or neither (checked on loading)
             return observations
         settings = self.metadata["obs_normalization"]
         scaled = (observations - self.obs_mean.numpy()) / np.sqrt(self.obs_var.numpy() + settings["epsilon"])
@@ -160,7 +167,7 @@ class TrainedDemonstrator:
         actions = self._mlp(np.asarray(self.policy_input(np.asarray(observations)), dtype=np.float32))
         if self.policy.squash_output:  # tanh-squashed policies act in [-1, 1]
             return self.policy.unscale_action(actions)
-        space = self.policy.action_space
+        space = action_box(self.policy.action_space)
         return np.clip(actions, space.low, space.high)
 
 
@@ -198,7 +205,8 @@ class NumpyMlp:
     HalfCheetah's 256-unit one 238 µs and 138 µs (16 observations, this 2-core CPU).
     """
 
-    ACTIVATIONS = {torch.nn.Tanh: np.tanh, torch.nn.ReLU: lambda x: np.maximum(x, 0)}
+    ACTIVATIONS: ClassVar[dict[type[torch.nn.Module], Callable[[np.ndarray], np.ndarray]]] = {
+        torch.nn.Tanh: np.tanh, torch.nn.ReLU: lambda x: np.maximum(x, 0)}
 
     def __init__(self, layers: list[tuple[np.ndarray, np.ndarray] | Callable[[np.ndarray], np.ndarray]]) -> None:
         self.layers = layers

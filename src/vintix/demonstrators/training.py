@@ -51,17 +51,21 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.type_aliases import MaybeCallback
 from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from vintix.atomic import atomic_write_text
 from vintix.demonstrators.scores import episode_returns
-from vintix.demonstrators.trained import (ALGORITHMS, TrainedDemonstrator, first_observations, save_trained_policy,
-                                          shipped_weights_dir)
+from vintix.demonstrators.trained import (
+    ALGORITHMS,
+    TrainedDemonstrator,
+    first_observations,
+    save_trained_policy,
+    shipped_weights_dir,
+)
 from vintix.errors import VintixError
-from vintix.evaluate.scores import reference
 from vintix.tasks import get_task, list_tasks, make_env
+from vintix.tasks.scores import reference
 from vintix.userdirs import user_cache_dir
 
 
@@ -202,9 +206,14 @@ def _saved_plan(info: dict[str, Any]) -> dict[str, Any]:
     """The plan a state was saved with, recipe fields added to `DemonstratorRecipe` since then at their
     defaults and fields removed since then dropped where unused: a run saved by an older vintix stays
     resumable."""
-    defaults = {f.name: f.default if f.default is not MISSING else f.default_factory()  # type: ignore[misc]
-                for f in fields(DemonstratorRecipe) if f.name not in _STOPPING_FIELDS
-                and (f.default is not MISSING or f.default_factory is not MISSING)}
+    defaults: dict[str, Any] = {}
+    for f in fields(DemonstratorRecipe):
+        if f.name in _STOPPING_FIELDS:
+            continue
+        if f.default is not MISSING:
+            defaults[f.name] = f.default
+        elif f.default_factory is not MISSING:
+            defaults[f.name] = f.default_factory()
     plan = info["plan"]
     saved = {name: value for name, value in _training_fields(plan["recipe"]).items()
              if name not in _REMOVED_FIELDS or value != _REMOVED_FIELDS[name]}
@@ -425,7 +434,11 @@ class _StopAtScore(BaseCallback):
         self.checked = self.num_timesteps // self.every
         with _global_rngs_kept():
             task, returns = self.score()
-        score = float(reference(task, "paper").normalize(returns.mean()))
+        paper = reference(task, "paper")
+        if paper is None:
+            raise VintixError(f"{task} has no published scores, so stop_at_score (a fraction of the paper's expert) "
+                              "cannot be checked: train it with a recipe without stop_at_score")
+        score = float(paper.normalize(returns.mean()))
         check = {"step": self.num_timesteps, "mean": round(float(returns.mean()), 1),
                  "std": round(float(returns.std()), 1), "normalized": round(score, 4)}
         self.checks.append(check)
@@ -511,7 +524,7 @@ def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume:
 def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, out: Path | None = None,
                        progress_bar: bool = True, recipe: DemonstratorRecipe | None = None,
                        state_dir: Path | None = None, save_minutes: float = 5.0,
-                       callback: MaybeCallback = None, report: Callable[[str], object] | None = None) -> Path:
+                       callback: BaseCallback | None = None, report: Callable[[str], object] | None = None) -> Path:
     """Train the demonstrator of `task`'s group and save it (default: into the package).
 
     Returns the weights file. `timesteps` overrides the budget (e.g. for a quick check); `recipe`
@@ -520,8 +533,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     `state_dir` (default: `default_state_dir`); a run finds and continues it, and deletes it once the
     weights are written, unless the recipe's `stop_at_score` was not reached: then the state stays, so a
     larger budget can continue the run. Each score check that beats the run's best so far keeps its policy
-    beside the state (`keep_best_check`), as a policy can fall between checks. `callback`: more SB3 callbacks;
-    `report`: gets a line per score check of a recipe with `stop_at_score`.
+    beside the state (`keep_best_check`), as a policy can fall between checks. `callback`: one more SB3
+    callback (several: a CallbackList); `report`: gets a line per score check of a recipe with `stop_at_score`.
     """
     spec = get_task(task)
     recipe = recipe or recipe_for(task)
@@ -554,7 +567,8 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
         stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report,
                             score_checks, keep, kept[1]["normalized"] if kept else -np.inf)
         callbacks.append(stop)
-    callbacks += [callback] if callback else []
+    if callback is not None:
+        callbacks.append(callback)
     try:
         with _sigterm_as_ctrl_c():
             model.learn(total_timesteps=budget - model.num_timesteps, callback=callbacks,

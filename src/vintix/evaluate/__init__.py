@@ -13,8 +13,8 @@ from vintix.evaluate.run import (
     shots_to_show,
     summarize,
 )
-from vintix.evaluate.scores import REFERENCE_TABLES, Reference, ReferenceScoreError, reference
 from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm, iqm_with_ci
+from vintix.tasks.scores import REFERENCE_TABLES, Reference, ReferenceScoreError, reference
 
 __all__ = [
     "REFERENCE_TABLES",

@@ -34,11 +34,11 @@ from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_kind, check_output_path
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
-from vintix.evaluate.scores import Reference, missing_reference_note, reference
 from vintix.evaluate.summary import best_k_plateau
 from vintix.fields import check_field_types
 from vintix.model.model import Vintix
-from vintix.tasks import DOMAINS, TaskSpec, get_task, make_env, resolve_tasks
+from vintix.tasks import DOMAINS, TaskSpec, action_box, get_task, make_env, resolve_tasks
+from vintix.tasks.scores import Reference, missing_reference_note, reference
 from vintix.train.config import SELECT_METRICS, ConfigError, TrainConfig
 from vintix.train.trainer import Scorer, Selection
 
@@ -117,7 +117,8 @@ def parse_variation(items: Sequence[str]) -> dict[str, float]:
         try:
             variation[name.strip()] = float(value)
         except ValueError:
-            raise VintixError(f"variation {item!r} is not NAME=NUMBER, e.g. viscosity=0.05 or gravity_scale=1.1") from None
+            raise VintixError(
+                f"variation {item!r} is not NAME=NUMBER, e.g. viscosity=0.05 or gravity_scale=1.1") from None
     return variation
 
 
@@ -137,9 +138,11 @@ def select_tasks(selectors: Sequence[str], groups: Sequence[str]) -> tuple[list[
             )
         else:
             skipped.append(spec.name)
-    notes = [f"skipped {len(skipped)} selected task(s) whose group the checkpoint lacks: {', '.join(skipped)}"] if skipped else []
+    notes = ([f"skipped {len(skipped)} selected task(s) whose group the checkpoint lacks: {', '.join(skipped)}"]
+             if skipped else [])
     if not kept:
-        raise UnknownTaskError(f"none of {selectors} is a task of the checkpoint's groups ({', '.join(sorted(groups))})")
+        raise UnknownTaskError(
+            f"none of {selectors} is a task of the checkpoint's groups ({', '.join(sorted(groups))})")
     return kept, notes
 
 
@@ -160,11 +163,12 @@ def load_prompt(root: Path, task: str, index: int, steps: int) -> Prompt:
     spec = get_task(task)
     matches = [t for t in find_tasks(root) if _canonical(t.task_name) == spec.name]
     if not matches or not matches[0].history_paths:
-        raise VintixError(f"{root} has no learning history of {spec.name}: cannot prompt it; collect some or drop --prompt-from")
+        raise VintixError(
+            f"{root} has no learning history of {spec.name}: cannot prompt it; collect some or drop --prompt-from")
     paths = matches[0].history_paths
     if index >= len(paths):
-        raise VintixError(f"{matches[0].task_dir} has {len(paths)} histories, but prompting run {index + 1} needs history "
-                          f"{index + 1}: use --seeds {len(paths)} or fewer, or collect more histories")
+        raise VintixError(f"{matches[0].task_dir} has {len(paths)} histories, but prompting run {index + 1} needs "
+                          f"history {index + 1}: use --seeds {len(paths)} or fewer, or collect more histories")
     with LearningHistory(paths[index]) as history:
         if history.num_steps < steps:
             raise VintixError(f"{history.path} has {history.num_steps} steps, fewer than the prompt's {steps}")
@@ -223,7 +227,7 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
     active = list(range(n))  # the envs still playing, in the agent's batch order
     while active:
         actions = agent.act([observations[i] for i in active], rewards[active], starts[active])
-        for i, action in zip(active, actions):
+        for i, action in zip(active, actions, strict=True):
             observation, reward, terminated, truncated, info = envs[i].step(action)
             returns[i] += reward
             lengths[i] += 1
@@ -288,10 +292,11 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
     if config.prompt_from is not None:
         prompts = [load_prompt(config.prompt_from, spec.name, seed - config.first_seed, prompt_steps)
                    for spec, seed in batch]
-        batch = [(spec, seed if p.env_seed is None else p.env_seed) for (spec, seed), p in zip(batch, prompts)]
+        batch = [(spec, seed if p.env_seed is None else p.env_seed)
+                 for (spec, seed), p in zip(batch, prompts, strict=True)]
     envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
     try:
-        agent.reset([spec.name for spec, _ in batch], [env.action_space for env in envs])
+        agent.reset([spec.name for spec, _ in batch], [action_box(env.action_space) for env in envs])
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
@@ -306,7 +311,7 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
          "reward_input": config.reward_input,
          "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
          "success": "" if e.success is None else e.success}
-        for (spec, seed), task, episodes in zip(batch, tasks, results)
+        for (spec, seed), task, episodes in zip(batch, tasks, results, strict=True)
         for shot, e in enumerate(episodes)
     ]
 

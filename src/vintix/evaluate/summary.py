@@ -60,7 +60,7 @@ def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int
     the point itself.
     """
     shots = [min(a.shape[1], b.shape[1]) for a, b in pairs]
-    pairs = [(a[:, :n], b[:, :n]) for (a, b), n in zip(pairs, shots)]
+    pairs = [(a[:, :n], b[:, :n]) for (a, b), n in zip(pairs, shots, strict=True)]
     if paired and any(len(a) != len(b) for a, b in pairs):
         raise ValueError("paired runs need as many runs in a as in b, row i of both being one seed")
     # What is resampled is run indices: one sample per pair when paired, else one per array.
@@ -73,7 +73,7 @@ def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int
 
     def gap(*indices: np.ndarray, axis: int = -1) -> np.ndarray:
         return np.mean([_converged(a[indices[i]], k) - _converged(b[indices[j]], k)
-                        for (a, b), (i, j) in zip(pairs, which)], axis=0)
+                        for (a, b), (i, j) in zip(pairs, which, strict=True)], axis=0)
 
     point = float(gap(*samples))
     if min(len(s) for s in samples) < 2:

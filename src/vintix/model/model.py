@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import torch
@@ -101,7 +102,8 @@ class ModelConfig:
         if self.policy not in POLICIES:
             raise ModelConfigError(f"policy must be one of {list(POLICIES)}, got {self.policy!r}")
         if self.reward_encoder not in REWARD_ENCODERS:
-            raise ModelConfigError(f"reward_encoder must be one of {list(REWARD_ENCODERS)}, got {self.reward_encoder!r}")
+            raise ModelConfigError(
+                f"reward_encoder must be one of {list(REWARD_ENCODERS)}, got {self.reward_encoder!r}")
 
 # tiny: ~0.8M backbone parameters, small enough to train on a laptop CPU in tens of minutes (the
 #   shipped cpu-suite model); a 1024-step window holds 10 Meta-World or 4 Industrial Benchmark episodes.
@@ -122,8 +124,8 @@ PRESETS: dict[str, ModelConfig] = {
 }
 
 
-def preset(name: str, **overrides: object) -> ModelConfig:
-    """A fresh copy of a preset config, with any field overridden."""
+def preset(name: str, **overrides: Any) -> ModelConfig:
+    """A fresh copy of a preset config, with any field overridden (ModelConfig checks the values' types)."""
     if name not in PRESETS:
         raise ModelConfigError(f"unknown model preset {name!r}; choose one of {sorted(PRESETS)}")
     return replace(PRESETS[name], **overrides)
@@ -348,6 +350,14 @@ class Vintix(nn.Module):
     sequence of the batch from ``group``. To mix groups in one batch, ``embed`` each group's
     sub-batch, concatenate along the batch dim, run ``backbone`` once, split, and ``head`` each part.
     """
+
+    # Buffers (set by register_buffer below), declared for the type checker: nn.Module's attribute
+    # lookup would otherwise type them Tensor | Module.
+    obs_mean: torch.Tensor
+    obs_std: torch.Tensor
+    reward_scale: torch.Tensor
+    task_group: torch.Tensor
+    alibi_slopes: torch.Tensor
 
     def __init__(self, config: ModelConfig, groups: Sequence[GroupSpec], task_norms: Sequence[TaskNorm]):
         super().__init__()

@@ -30,9 +30,9 @@ from vintix.atomic import atomic_path, atomic_write_text, check_output_kind
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
-from vintix.evaluate.scores import Reference, check_table, missing_reference_note, reference
 from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci
 from vintix.tasks import get_task
+from vintix.tasks.scores import Reference, check_table, missing_reference_note, reference
 
 
 @dataclass
@@ -96,18 +96,20 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
                 ref: Reference | None = refs[task]
                 if ref is None:
                     continue
-                episode_return, shot, success = _checked_episode(row)
+                episode_return, shot, succeeded = _checked_episode(row)
                 by_shot = runs[variant][(int(row["seed"]), row["prompt_steps"])]
                 if shot in by_shot:
                     raise ValueError(f"a second row for {variant}, seed {row['seed']}, shot {shot}")
-                by_shot[shot] = float(ref.normalize(episode_return)), success
+                by_shot[shot] = float(ref.normalize(episode_return)), succeeded
             except (ValueError, TypeError) as error:  # a hand-edited or foreign table
                 raise VintixError(f"{episodes}, line {line}: {error}; {rewrite}") from error
             domains[variant] = _variant(f"{row['domain']} {row['split']}", row["variation"])
             tasks[variant] = task
     if line == 1:
         raise VintixError(f"{episodes}: holds no episodes; {rewrite}")
-    scores, success, seeds = {}, {}, {}
+    scores: dict[str, np.ndarray] = {}
+    success: dict[str, np.ndarray] = {}
+    seeds: dict[str, list[int]] = {}
     for variant, by_run in runs.items():
         for (seed, _), by_shot in by_run.items():
             if sorted(by_shot) != list(range(1, len(by_shot) + 1)):
@@ -274,15 +276,16 @@ def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int)
         common = sorted(set(true.scores) & set(other.scores))
         for domain in sorted({true.domains[v] for v in common}):
             variants = [v for v in common if true.domains[v] == domain]
-            domain_lines.append(f"| {domain} | {true.label} | {fed} | " + " | ".join(_gap_cells(true, other, variants, k))
-                                + " |")
+            domain_lines.append(f"| {domain} | {true.label} | {fed} | "
+                                + " | ".join(_gap_cells(true, other, variants, k)) + " |")
         for variant in common:
             task_lines.append(f"| {variant} | {true.label} | {fed} | "
                               + " | ".join(_gap_cells(true, other, [variant], k)) + " |")
     return lines + ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
 
 
-def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_shots: int = 10) -> tuple[Path, list[str]]:
+def write_report(folders: list[Path], out: Path, table: str = "paper",
+                 plateau_shots: int = 10) -> tuple[Path, list[str]]:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
     Returns the report's path and notes (tasks without a reference score, ablated folders without a
     true-reward folder to compare with)."""
@@ -314,13 +317,14 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
         prompt = config.get("prompt_steps") if config.get("prompt_from") else "cold start"
         lines.append(f"| {r.label} | `{r.run.get('checkpoint', '')}` | {config.get('shots', '?')} | "
                      f"{config.get('seeds', '?')} | {variation} | {prompt} | {r.reward_input} | {len(r.scores)} |")
-    goal = {r.run.get("goal_protocol") for r in results} - {None}
+    goal = {str(protocol) for r in results if (protocol := r.run.get("goal_protocol")) is not None}
     if goal:
         lines.append(f"\nMeta-World goal protocol: {'; '.join(sorted(goal))}.\n")
 
     per_label = ["shot 1", "converged"] + (["success shot 1", "success converged"] if with_success else [])
     lines += ["\n## Per domain\n",
-              f"| domain ({table}-normalized) | " + " | ".join(f"{r.label}: {c}" for r in results for c in per_label) + " |",
+              f"| domain ({table}-normalized) | "
+              + " | ".join(f"{r.label}: {c}" for r in results for c in per_label) + " |",
               "|---|" + "---|" * len(per_label) * len(results)]
     domains = sorted({d for r in results for d in r.domains.values()})
     for domain in domains:

@@ -138,3 +138,11 @@ def make_env(task: str, seed: int | None = None, **options: Any) -> gym.Env:
             f"it accepts: {', '.join(accepted) or 'no options'}.{hint}"
         )
     return SeedFirstReset(_FACTORIES[spec.domain](spec, seed, **options), seed)
+
+
+def action_box(space: gym.Space) -> gym.spaces.Box:
+    """`space` as the Box it is: every task of the registry acts in a continuous Box (gymnasium's
+    envs and SB3's policies type their action space as any `Space`)."""
+    if not isinstance(space, gym.spaces.Box):
+        raise TypeError(f"expected a Box action space (every vintix task is continuous control), got {space}")
+    return space

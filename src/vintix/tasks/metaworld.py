@@ -11,13 +11,15 @@ need it: `expert_observation(obs)` puts it back. Only demonstrators may call it,
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
 from metaworld.env_dict import ALL_V3_ENVIRONMENTS
 
 DEFAULT_EPISODE_LENGTH = 100  # the paper truncates episodes at 100 steps, like JAT
+RenderMode = Literal["human", "rgb_array", "depth_array"]
+"""The render modes metaworld's envs take."""
 
 
 class MetaWorldTaskEnv(gym.Env):
@@ -31,7 +33,7 @@ class MetaWorldTaskEnv(gym.Env):
         seed: int | None = None,
         episode_length: int = DEFAULT_EPISODE_LENGTH,
         resample_goal_each_episode: bool = False,
-        render_mode: str | None = None,
+        render_mode: RenderMode | None = None,
     ) -> None:
         self.task_name = task_name
         self.resample_goal_each_episode = resample_goal_each_episode
@@ -85,6 +87,7 @@ class MetaWorldTaskEnv(gym.Env):
         """The bounds of the task's goal space (for tasks whose hidden goal is drawn at random, e.g.
         reach-v3 and push-v3, the box the env draws it from)."""
         space = self._sawyer.goal_space
+        assert space is not None, f"{self.task_name}: metaworld gave the task no goal space"  # every v3 task has one
         return np.array(space.low, dtype=np.float64), np.array(space.high, dtype=np.float64)
 
     def goal_prior(self, rng: np.random.Generator, count: int) -> np.ndarray:
@@ -101,7 +104,9 @@ class MetaWorldTaskEnv(gym.Env):
             rewards = []
             for goal in goals:
                 sawyer._target_pos = goal
-                rewards.append(sawyer.compute_reward(action, obs)[0])
+                # Every v3 task's env class defines compute_reward; their base class SawyerXYZEnv, the type
+                # metaworld's ALL_V3_ENVIRONMENTS declares, does not.
+                rewards.append(sawyer.compute_reward(action, obs)[0])  # type: ignore[attr-defined]
         finally:
             sawyer._target_pos = true_goal
         return np.asarray(rewards, dtype=np.float64)

@@ -7,8 +7,8 @@ Naming: MuJoCo tasks use gymnasium's `-v5` ids. The paper's tables and the publi
 `-v4`, but the dimensions they hold are the v5 ones (Ant 105, Humanoid 348, ...), so `-v4` names are
 accepted as aliases of the `-v5` task (Pusher too, although gymnasium's own Pusher-v4 does not load
 on mujoco 3: the alias makes the v5 env). Meta-World tasks use metaworld 3.x's `-v3` ids; the
-paper's bare names and `-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1` (alias `IB-p-<p>`);
-Bi-DexHands uses the dataset's `Hand-*` names (alias: the score table's `shadowhand*`).
+paper's bare names and `-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1`
+(alias `IB-p-<p>`); Bi-DexHands uses the dataset's `Hand-*` names (alias: the score table's `shadowhand*`).
 The toy domain's `point-goal-v1` (`vintix.tasks.toy`) is not a paper task and has no published scores.
 """
 

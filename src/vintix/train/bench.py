@@ -98,7 +98,8 @@ def benchmark_preset(name: str, peak_flops: float, batch_size: int, steps: int, 
     return TrainBenchmark(name, parameter_count(name), batch_size, config.context_len, tokens_per_s, mfu)
 
 
-def benchmark_training(presets: list[str], batch_size: int, steps: int, device: torch.device) -> tuple[float, list[TrainBenchmark]]:
+def benchmark_training(presets: list[str], batch_size: int, steps: int,
+                       device: torch.device) -> tuple[float, list[TrainBenchmark]]:
     """The device's matmul peak (FLOP/s) and each preset's training speed."""
     dtype = torch.bfloat16 if device.type == "cuda" else torch.float32
     peak = measure_matmul_flops(device, dtype, size=2048)

@@ -144,8 +144,8 @@ def intact_alternative_hint(directory: Path) -> str:
                 load_pretrained(other)
             except CheckpointError:
                 continue
-            return (f". The run's newest intact checkpoint is {other}: pass it with --checkpoint, or delete the damaged "
-                    f"{directory} so that {run} means it")
+            return (f". The run's newest intact checkpoint is {other}: pass it with --checkpoint, or delete the "
+                    f"damaged {directory} so that {run} means it")
     return f". The run {run} has no other intact checkpoint: re-train, or restore {directory} from a backup"
 
 
@@ -192,7 +192,8 @@ def model_directory(path: str | os.PathLike[str]) -> Path:
     return latest
 
 
-def _optimizer_tensors(optimizer: torch.optim.Optimizer, names: list[str]) -> tuple[dict[str, torch.Tensor], list[dict]]:
+def _optimizer_tensors(optimizer: torch.optim.Optimizer,
+                       names: list[str]) -> tuple[dict[str, torch.Tensor], list[dict]]:
     """AdamW state as flat named tensors, and its param groups with parameter names instead of indices."""
     state = optimizer.state_dict()
     tensors = {f"{names[i]}/{key}": value.detach().cpu().contiguous()

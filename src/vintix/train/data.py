@@ -299,9 +299,9 @@ def load_training_data(
     groups get observation statistics only (`TrainingData.held_out`). The reward scale is the task
     JSON's ``reward_scale`` when it has one (the data says how it was recorded), else the registry's;
     the group always comes from the registry; with ``normalize_rewards`` it is instead 1 / the std of
-    the task's rewards in the data, so every task's rewards reach the model at unit scale. Expert distillation (see `TrainConfig.expert_rows`)
-    learns the stored demonstrator actions on every row of a task whose histories all have them,
-    else the executed actions of the noise-free tail.
+    the task's rewards in the data, so every task's rewards reach the model at unit scale. Expert
+    distillation (see `TrainConfig.expert_rows`) learns the stored demonstrator actions on every row of
+    a task whose histories all have them, else the executed actions of the noise-free tail.
     """
     root = Path(root)
     # Every folder must be a registry task, or its split (train or held out) would be a guess.
@@ -309,7 +309,8 @@ def load_training_data(
     wanted = {spec.name for spec in resolve_tasks(list(tasks))} if tasks else None
     specs = [(task, spec) for task, spec in found if wanted is None or spec.name in wanted]
     if not specs:
-        raise TrainingDataError(f"{root}: no task folder with .h5 histories{' among ' + str(list(tasks)) if tasks else ''}; "
+        among = f" among {list(tasks)}" if tasks else ""
+        raise TrainingDataError(f"{root}: no task folder with .h5 histories{among}; "
                                 "collect data first (`vintix collect`) or check --data and the `tasks` setting")
     trained_groups = {spec.group for _, spec in specs}
     held_out = [(task, spec) for task, spec in found if (task, spec) not in specs and spec.group in trained_groups]
@@ -320,14 +321,16 @@ def load_training_data(
         histories = _histories(task)
         relabel = _learns_demonstrator_actions(histories, expert_distillation, expert_rows)
         tail = None if relabel else _tail_fraction(task, expert_distillation, expert_tail_fraction)
-        windows.append(TaskWindows(spec.name, spec.group, _task_norm(task, spec, histories, cache_dir, normalize_rewards),
+        norm = _task_norm(task, spec, histories, cache_dir, normalize_rewards)
+        windows.append(TaskWindows(spec.name, spec.group, norm,
                                    [HistoryWindows(h, usable_bounds(h, tail)) for h in histories],
                                    task_fingerprint(task.history_paths),
                                    "demonstrator_action" if relabel else "action"))
     held_out_norms = [_task_norm(task, spec, _histories(task), cache_dir, normalize_rewards) for task, spec in held_out]
     names = [n.task for n in [w.norm for w in windows] + held_out_norms]
     if len(set(names)) != len(names):
-        raise TrainingDataError(f"{root}: several task folders hold the same registry task ({sorted(names)}); merge them")
+        raise TrainingDataError(
+            f"{root}: several task folders hold the same registry task ({sorted(names)}); merge them")
     return TrainingData(root, windows, groups, held_out_norms)
 
 
@@ -420,7 +423,8 @@ class WindowDataset(torch.utils.data.Dataset):
         t, h, e, offset, k = self.locate(index)
         task = self.data.tasks[t]
         history = task.histories[h]
-        parts: dict[str, list[np.ndarray]] = {key: [] for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
+        parts: dict[str, list[np.ndarray]] = {
+            key: [] for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
         for n, (lo, hi) in enumerate(history.segments(e, offset, self.window_len, k)):
             # Only the first segment can start mid-episode; then read one row earlier for the true
             # previous action/reward. Later segments start episodes, where the model pads.
@@ -449,7 +453,7 @@ def collate_windows(windows: Sequence[Window]) -> Batch:
     batch: Batch = {}
     for group in sorted(by_group):
         members = by_group[group]
-        stacked = {key: torch.from_numpy(np.stack([w[key] for w in members]))  # type: ignore[misc]
+        stacked = {key: torch.from_numpy(np.stack([w[key] for w in members]))
                    for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
         stacked["task_idx"] = torch.tensor([int(w["task_idx"]) for w in members], dtype=torch.long)
         batch[group] = stacked

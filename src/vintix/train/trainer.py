@@ -98,7 +98,7 @@ class WindowLoss(nn.Module):
                   for g, b in batch.items()]
         hidden = self.model.backbone(torch.cat(tokens))
         losses = []
-        for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens])):
+        for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True):
             mean, log_std = self.model.action_distribution(group, part)
             target = batch[group]["action"]
             if log_std is None:
@@ -443,7 +443,8 @@ class Trainer:
             n_params = count_parameters(self.model)
             where = f"resuming from {self.resumed_from}" if self.resumed_from else "starting fresh"
             print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
-                  f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device}; {where} at step {self.step}")
+                  f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device}; "
+                  f"{where} at step {self.step}")
             if cfg.expert_distillation:
                 print("expert distillation: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
         # Per group: summed window loss, windows, training FLOPs since the last log line.
@@ -454,21 +455,24 @@ class Trainer:
         last_time, last_tokens, last_dir = time.perf_counter(), self.tokens, None
         while self.step < stop:
             lr = learning_rate(self.step, cfg)
-            for group in self.optimizer.param_groups:
-                group["lr"] = lr
+            for param_group in self.optimizer.param_groups:
+                param_group["lr"] = lr
             for micro in range(cfg.grad_accum):
                 batch = batch_to(next(batches), self.device)
-                sync = micro == cfg.grad_accum - 1 or self.dist.world_size == 1
-                with (contextlib.nullcontext() if sync else self.loss_module.no_sync()), precision_context(self.device):
+                # DDP all-reduces the gradients of the last micro-batch only.
+                unsynced = (self.loss_module.no_sync()
+                            if isinstance(self.loss_module, nn.parallel.DistributedDataParallel)
+                            and micro < cfg.grad_accum - 1 else contextlib.nullcontext())
+                with unsynced, precision_context(self.device):
                     losses = self.loss_module(batch)
                 (losses.mean() / cfg.grad_accum).backward()
                 start = 0
                 for group, part in batch.items():
                     n = part["obs"].shape[0]
-                    row = sums[group_index[group]]
-                    row[0] += losses[start : start + n].detach().double().sum()
-                    row[1] += n
-                    row[2] += n * self.window_len * self.flops[group]
+                    totals = sums[group_index[group]]
+                    totals[0] += losses[start : start + n].detach().double().sum()
+                    totals[1] += n
+                    totals[2] += n * self.window_len * self.flops[group]
                     start += n
             grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
             # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.

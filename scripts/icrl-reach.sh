@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Rebuild the icrl-reach model and its reward-ablation results from nothing, on a CPU.
+#   scripts/icrl-reach.sh [WORK_DIR]      (default: icrl-reach/; collection and training resume where they stopped)
+# Steps: 2,000 hidden reach goals played by a demonstrator that never sees the goal (it probes the
+# goal box in its first episode, then aims at the goal that best explains the rewards so far;
+# src/vintix/collect/recipes/icrl-reach.yaml); plain AD of its actions, checkpoints chosen by
+# cold-start success on unseen goals (src/vintix/train/configs/icrl-reach.yaml); cold-start
+# evaluation on 20 unseen goals with true, zero and shuffled rewards fed back; the report with the
+# reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation.
+set -euo pipefail
+W=${1:-icrl-reach}
+V=${VINTIX:-vintix}
+EVAL=(--tasks reach-v3 --shots 20 --seeds 20 --first-seed 100 --reference ours)
+
+$V collect --recipe icrl-reach --out "$W/data" --workers 2
+$V train --config icrl-reach --data "$W/data" --out "$W/runs/ad"
+for rewards in true zero shuffled; do
+  $V eval --checkpoint "$W/runs/ad" --label "AD ($rewards rewards)" "${EVAL[@]}" --reward-input "$rewards" \
+    --out "$W/results/$rewards"
+done
+folders=("$W"/results/{true,zero,shuffled})
+if [[ ${NR:-0} == 1 ]]; then
+  $V train --config icrl-reach --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={reward_encoder: mlp, rew_emb_dim: 16, obs_emb_dim: 56, act_emb_dim: 56, context_len: 500, mask_reward: true}'
+  $V eval --checkpoint "$W/runs/nr" --label "AD without rewards" "${EVAL[@]}" --out "$W/results/nr"
+  folders+=("$W/results/nr")
+fi
+$V report "${folders[@]}" --reference ours --out "$W/report"
+echo "model under $W/runs/ad/checkpoints/best, results under $W/results, report $W/report/report.md"

@@ -1,0 +1,155 @@
+"""Reference scores, facts about tasks: normalized scores ``(R − random) / (expert − random)`` against
+either reference table, and the table of our own measured scores.
+
+Two tables, chosen by name: ``paper`` (the paper's published random/expert returns, in the task
+registry; the default, so numbers compare with the paper's) and ``ours`` (the returns of our own
+demonstrators and of a uniform-random policy, measured on our env versions by `vintix demonstrator
+eval`, which `vintix.demonstrators.scores` runs). A task the chosen table lacks gets no normalized
+score and a message saying so, never a made-up one.
+
+The paper's published scores come from other env versions (MuJoCo v4, Meta-World v2) and other
+demonstrators, so normalizing by our demonstrators' measured scores is the fair yardstick for data
+we collect; the package's ``demonstrators/scores.csv`` keeps them, one row per (task, policy), each
+with how it was measured (episodes, seed, env and package versions, date, command). That table
+normalizes every result, so it is reference data, read-only at run time: `vintix demonstrator eval`
+writes what it measures to a table in the user's folder, and rewrites the package's only when asked
+to (``--update-package-table``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, fields
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from vintix.atomic import atomic_write_text
+from vintix.errors import VintixError
+from vintix.tasks.registry import ReferenceScore, get_task
+
+REFERENCE_TABLES = ("paper", "ours")
+POLICIES = ("demonstrator", "random")
+"""The policies of a row of our score table."""
+
+
+class ReferenceScoreError(VintixError, ValueError):
+    """A reference table that cannot normalize a task (expert not above random)."""
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A task's random and expert returns in one table, with where they came from."""
+
+    random: float
+    expert: float
+    provenance: str
+
+    def __post_init__(self) -> None:
+        # expert ≤ random would flip or blow up every score (and expert == random would make every
+        # return "expert"), so it is an error, never silently 1.
+        if not self.expert > self.random:
+            raise ReferenceScoreError(
+                f"expert return {self.expert} is not above random return {self.random} ({self.provenance}); "
+                "such a reference cannot normalize scores: re-measure the demonstrator or use the other table"
+            )
+
+    def normalize(self, returns: float | np.ndarray) -> np.ndarray:
+        """Normalized score(s) of episode return(s)."""
+        return (np.asarray(returns, dtype=np.float64) - self.random) / (self.expert - self.random)
+
+
+def check_table(table: str) -> str:
+    """`table` if it names a reference table; a ReferenceScoreError listing them otherwise."""
+    if table not in REFERENCE_TABLES:
+        raise ReferenceScoreError(f"unknown reference table {table!r}; choose one of {', '.join(REFERENCE_TABLES)}")
+    return table
+
+
+def reference(task: str, table: str = "paper") -> Reference | None:
+    """`task`'s reference in `table` ('paper' or 'ours'); None when the table has no score for it."""
+    check_table(table)
+    spec = get_task(task)
+    if table == "paper":
+        if spec.paper_random is None or spec.paper_expert is None:
+            return None  # not a task of the paper
+        return Reference(spec.paper_random.mean, spec.paper_expert.mean, spec.paper_expert.provenance)
+    if table == "ours":
+        found = our_reference_scores(spec.name)
+        if found is None:
+            return None
+        random, expert = found
+        return Reference(random.mean, expert.mean, expert.provenance)
+    raise AssertionError(table)  # check_table admitted a table this function does not know
+
+
+def missing_reference_note(tasks: list[str], table: str) -> str:
+    """What to tell a user whose table lacks `tasks`."""
+    return (f"no '{table}' reference score (random and demonstrator returns) for {len(tasks)} task(s): "
+            f"{', '.join(tasks)}; their normalized_{table} scores are left empty. Measure them with "
+            f"`vintix demonstrator eval --task TASK`.")
+
+
+def scores_path() -> Path:
+    """The package's score table (``demonstrators/scores.csv``, beside the demonstrators it measures)."""
+    return Path(str(resources.files("vintix").joinpath("demonstrators").joinpath("scores.csv")))
+
+
+@dataclass(frozen=True)
+class MeasuredScore:
+    """One row of the score table: a policy's episode returns on one task, and how they were measured."""
+
+    task: str
+    policy: str
+    """'demonstrator' or 'random'."""
+    mean: float
+    std: float
+    episodes: int
+    seed: int
+    env_version: str
+    """gymnasium id and the simulator package's version: returns drift across versions."""
+    measured_on: str
+    command: str
+
+    def reference(self) -> ReferenceScore:
+        return ReferenceScore(self.mean, self.std, f"ours: {self.policy}, {self.episodes} episodes, seed "
+                              f"{self.seed}, {self.env_version}, {self.measured_on}")
+
+
+def read_scores(path: Path | None = None) -> list[MeasuredScore]:
+    """Every row of the score table (none if it does not exist yet)."""
+    path = path or scores_path()
+    if not path.is_file():
+        return []
+    rows = csv.DictReader(path.read_text().splitlines())
+    return [MeasuredScore(task=row["task"], policy=row["policy"], mean=float(row["mean"]), std=float(row["std"]),
+                          episodes=int(row["episodes"]), seed=int(row["seed"]), env_version=row["env_version"],
+                          measured_on=row["measured_on"], command=row["command"]) for row in rows]
+
+
+def record_scores(new: Sequence[MeasuredScore], path: Path) -> Path:
+    """Add rows to the score table at `path`, replacing any earlier row of the same (task, policy).
+
+    `path` has no default: rewriting the package's reference table (`scores_path()`) has to be asked for.
+    """
+    replaced = {(s.task, s.policy) for s in new}
+    rows = [s for s in read_scores(path) if (s.task, s.policy) not in replaced] + list(new)
+    rows.sort(key=lambda s: (s.task, POLICIES.index(s.policy)))
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=[f.name for f in fields(MeasuredScore)], lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(asdict(s) for s in rows)
+    atomic_write_text(path, buffer.getvalue())
+    return path
+
+
+def our_reference_scores(task: str, path: Path | None = None) -> tuple[ReferenceScore, ReferenceScore] | None:
+    """(random, expert) as measured here for `task`, or None if either was never measured."""
+    name = get_task(task).name
+    found = {s.policy: s.reference() for s in read_scores(path) if s.task == name}
+    if not set(POLICIES) <= set(found):
+        return None
+    return found["random"], found["demonstrator"]
