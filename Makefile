@@ -19,9 +19,10 @@ install: $(INSTALLED)
 # The reward-ablation test on the shipped models, cold start on goals and seeds training never used
 # (README, "In-context RL"; docs/in-context-rl.md): each plays with the true rewards fed back, then with zeros; scores and
 # success always come from the true returns. point-goal (the toy hidden-goal task) shows rewards doing
-# the work; cpu-suite (Meta-World, Industrial Benchmark, MuJoCo) shows a model whose gain over shots
-# does not come from rewards. Per-shot tables of score and success rate, then a report with the
-# reward-use gap per task, under demo/. No training.
+# the work; icrl-reach (Meta-World reach) shows them doing it in shots 2-3, then a model that forgets;
+# cpu-suite (Meta-World, Industrial Benchmark, MuJoCo) shows a model whose gain over shots does not
+# come from rewards. Per-shot tables of score and success rate, then a report with the reward-use gap
+# per task, under demo/. No training.
 DEMO := demo
 DEMO_SUITE_TASKS := reach-v3,push-v3,industrial-benchmark-30-v1,industrial-benchmark-70-v1,industrial-benchmark-90-v1,Reacher-v5,Pusher-v5
 DEMO_EVAL := --shots 10 --first-seed 100 --reference ours
@@ -29,10 +30,13 @@ demo: $(INSTALLED)
 	for rewards in true zero; do \
 	  $(BIN)/vintix eval --checkpoint point-goal --tasks point-goal-v1 --seeds 20 $(DEMO_EVAL) --reward-input $$rewards \
 	    --label point-goal --out $(DEMO)/point-goal/$$rewards || exit 1; \
+	  $(BIN)/vintix eval --checkpoint icrl-reach --tasks reach-v3 --seeds 20 $(DEMO_EVAL) --reward-input $$rewards \
+	    --label icrl-reach --out $(DEMO)/icrl-reach/$$rewards || exit 1; \
 	  $(BIN)/vintix eval --checkpoint cpu-suite --tasks $(DEMO_SUITE_TASKS) --seeds 3 $(DEMO_EVAL) --reward-input $$rewards \
 	    --label cpu-suite --out $(DEMO)/cpu-suite/$$rewards || exit 1; \
 	done
 	$(BIN)/vintix report $(DEMO)/point-goal/true $(DEMO)/point-goal/zero --reference ours --plateau-shots 3 --out $(DEMO)/report/point-goal
+	$(BIN)/vintix report $(DEMO)/icrl-reach/true $(DEMO)/icrl-reach/zero --reference ours --plateau-shots 3 --out $(DEMO)/report/icrl-reach
 	$(BIN)/vintix report $(DEMO)/cpu-suite/true $(DEMO)/cpu-suite/zero --reference ours --plateau-shots 3 --out $(DEMO)/report/cpu-suite
 
 test: $(INSTALLED)

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Rebuild the icrl-reach model and its reward-ablation results from nothing, on a CPU.
 #   scripts/icrl-reach.sh [WORK_DIR]      (default: icrl-reach/; collection and training resume where they stopped)
-# Steps: 2,000 hidden reach goals played by a demonstrator that never sees the goal (it probes the
-# goal box in its first episode, then aims at the goal that best explains the rewards so far;
+# Steps: 2,000 hidden reach goals, 5 episodes each, played by a demonstrator that never sees the goal
+# (it probes the goal box in its first episode, then aims at the goal that best explains the rewards so far;
 # src/vintix/collect/recipes/icrl-reach.yaml); plain AD of its actions, checkpoints chosen by
 # cold-start success on unseen goals (src/vintix/train/configs/icrl-reach.yaml); cold-start
 # evaluation on 20 unseen goals with true, zero and shuffled rewards fed back; the report with the
