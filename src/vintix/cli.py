@@ -780,7 +780,9 @@ def eval_command(
     prompt_from: Annotated[Path | None, typer.Option(
         help="dataset root: prompt with the start of a stored history")] = None,
     prompt_steps: Annotated[int | None, typer.Option(help="prompt length (default: half the window)")] = None,
-    reference: Annotated[str, typer.Option(help="reference table of the printed summary: paper or ours")] = "paper",
+    reference: Annotated[str, typer.Option(
+        help="reference table of the printed summary: ours (our measured demonstrators and random policy; every "
+             "task has it) or paper (the paper's table; what comparisons with its numbers need)")] = "ours",
     label: Annotated[str | None, typer.Option(
         help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
@@ -860,7 +862,9 @@ def report_command(
     results: Annotated[list[Path], typer.Argument(
         help="`vintix eval` output folders (several: compared side by side)")],
     out: Annotated[Path, typer.Option(help="folder for report.md and figures/")] = Path("report"),
-    reference: Annotated[str, typer.Option(help="reference table: paper or ours")] = "paper",
+    reference: Annotated[str, typer.Option(
+        help="reference table: ours (our measured demonstrators and random policy; every task has it) or paper "
+             "(the paper's table; what comparisons with its numbers need)")] = "ours",
     plateau_shots: Annotated[int, typer.Option(min=1, help="k of the best-k-shot plateau (converged score)")] = 10,
 ) -> None:
     """Markdown report with PNG figures: score vs shot per task and domain, converged vs the paper's."""
