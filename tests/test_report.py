@@ -38,7 +38,8 @@ def two_results(tmp_path_factory):
 
 def test_report_has_every_figure_and_the_aggregates_of_the_episodes(two_results, tmp_path):
     result = CliRunner().invoke(app, ["report", str(two_results / "ad"), str(two_results / "ad-no-reward"),
-                                      "--out", str(tmp_path / "report"), "--plateau-shots", "2", "--reference", "paper"])
+                                      "--out", str(tmp_path / "report"), "--plateau-shots", "2",
+                                      "--reference", "paper"])
     assert result.exit_code == 0, result.output
     figures = tmp_path / "report" / "figures"
     expected = {"domain-metaworld_train.png", "domain-mujoco_train.png", "first-vs-converged.png",
