@@ -12,12 +12,13 @@ normalizations, each task weighted equally. `AgentTask.norm_source` says which o
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
+from typing import Any, TypeVar, cast
 
 import gymnasium as gym
 import numpy as np
@@ -183,6 +184,26 @@ class _GroupBatch:
         )
 
 
+_AgentMethod = TypeVar("_AgentMethod", bound=Callable[..., Any])
+
+
+def _one_call_at_a_time(method: _AgentMethod) -> _AgentMethod:
+    """Run `method` holding the agent's lock: its context is one sequence, and two threads stepping it at
+    once would interleave their tokens (or fail mid-write) instead of raising a clear error."""
+
+    @functools.wraps(method)
+    def guarded(self: Agent, *args: Any, **kwargs: Any) -> Any:
+        if not self._busy.acquire(blocking=False):
+            raise AgentStateError(f"agent.{method.__name__} while another thread is inside this agent; an Agent "
+                                  "holds one context: give each thread its own Agent (they can share the model)")
+        try:
+            return method(self, *args, **kwargs)
+        finally:
+            self._busy.release()
+
+    return cast(_AgentMethod, guarded)
+
+
 class Agent:
     """A stateful policy over a batch of envs, with a sliding-window KV cache (`KVCache`).
 
@@ -215,18 +236,6 @@ class Agent:
         except CheckpointError as error:
             raise CheckpointError(f"{error}{intact_alternative_hint(resolved)}") from error
 
-    @contextmanager
-    def _exclusive(self, call: str) -> Iterator[None]:
-        """One call at a time: the context is one sequence, and two threads stepping it at once would
-        interleave their tokens (or fail mid-write) instead of raising a clear error."""
-        if not self._busy.acquire(blocking=False):
-            raise AgentStateError(f"agent.{call} while another thread is inside this agent; an Agent holds one "
-                                  "context: give each thread its own Agent (they can share the model)")
-        try:
-            yield
-        finally:
-            self._busy.release()
-
     @property
     def device(self) -> torch.device:
         return self.model.ln_f.weight.device
@@ -236,13 +245,10 @@ class Agent:
         """Tokens fed since the last reset (prompt included)."""
         return 0 if self.cache is None else self.cache.length
 
+    @_one_call_at_a_time
     def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None = None) -> None:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
         `action_spaces` (default: each task's registry env's action space)."""
-        with self._exclusive("reset"):
-            self._reset(tasks, action_spaces)
-
-    def _reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None) -> None:
         if not tasks:
             raise AgentInputError("reset needs at least one task")
         if action_spaces is not None and len(action_spaces) != len(tasks):
@@ -261,14 +267,12 @@ class Agent:
         """Per-group views of the batch (`self.tasks`), built once per reset or keep, not per step."""
         self._groups = {g: _GroupBatch.of(self.tasks, g, self.device) for g in sorted({t.group for t in self.tasks})}
 
+    @_one_call_at_a_time
     def keep(self, envs: Sequence[int]) -> None:
         """Go on with only the envs at batch indices `envs` (they become envs 0, 1, ... in that
         order); the others are dropped with their context. The kept envs act exactly as they would
         have: this lets a batch shrink as its envs finish, instead of stepping them to no purpose."""
-        with self._exclusive("keep"):
-            self._keep(list(envs))
-
-    def _keep(self, envs: list[int]) -> None:
+        envs = list(envs)
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.keep(...)")
         if any(isinstance(i, (bool, np.bool_)) for i in envs):
@@ -318,6 +322,7 @@ class Agent:
             tokens[batch.envs] = self.model.encoders[group](o, prev_actions[group], reward, start)
         return tokens
 
+    @_one_call_at_a_time
     @torch.inference_mode()
     def act(
         self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
@@ -329,13 +334,6 @@ class Agent:
         ignored where ``episode_starts[i]`` (the first observation of an episode). A NaN/inf action
         from the model raises `AgentOutputError`: every action returned is finite and within bounds.
         """
-        with self._exclusive("act"):
-            return self._act(obs, prev_rewards, episode_starts)
-
-    def _act(
-        self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
-        episode_starts: Sequence[bool] | np.ndarray,
-    ) -> list[np.ndarray]:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
@@ -377,6 +375,7 @@ class Agent:
                 actions[i] = a
         return actions
 
+    @_one_call_at_a_time
     @torch.inference_mode()
     def prompt(
         self, observations: Sequence[np.ndarray], actions: Sequence[np.ndarray], rewards: Sequence[np.ndarray],
@@ -384,13 +383,6 @@ class Agent:
     ) -> None:
         """Feed stored steps (rows of a learning history, one array ``[T, ...]`` per env, the same T
         for every env and at most the window) as context before acting: a prompted, not cold, start."""
-        with self._exclusive("prompt"):
-            self._prompt(observations, actions, rewards, step_nums)
-
-    def _prompt(
-        self, observations: Sequence[np.ndarray], actions: Sequence[np.ndarray], rewards: Sequence[np.ndarray],
-        step_nums: Sequence[np.ndarray],
-    ) -> None:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.prompt(...)")
         steps = len(step_nums[0])
