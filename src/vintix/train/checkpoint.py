@@ -249,8 +249,10 @@ def read_rng(directory: Path) -> dict[str, torch.Tensor]:
     return load_file(str(directory / RNG_FILE))
 
 
-def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec], task_names: list[str]) -> None:
-    """Refuse to resume a run whose checkpoint was made for another model or another task set."""
+def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec], task_names: list[str]
+                    ) -> dict[str, Any]:
+    """Refuse to resume a run whose checkpoint was made for another model or another task set; return the
+    checkpoint's metadata (for `resume_changes`)."""
     meta = read_metadata(directory)
     problems = []
     saved_config, wanted_config = meta["config"], dataclasses.asdict(config)
@@ -270,12 +272,14 @@ def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec
             f"cannot resume from {directory}: " + "; ".join(problems)
             + ". Train into a new --out directory, or re-run with the config and data of the original run"
         )
+    return meta
 
 
-def resume_changes(directory: Path, config: dict[str, Any], dataset_fingerprint: str, free: Iterable[str]) -> list[str]:
-    """How a run resumed from the checkpoint in `directory` with `config` (a TrainConfig as a dict) on data
-    of `dataset_fingerprint` differs from the run that wrote it, ignoring the `free` fields."""
-    extra = read_metadata(directory).get("extra", {})
+def resume_changes(meta: dict[str, Any], config: dict[str, Any], dataset_fingerprint: str,
+                   free: Iterable[str]) -> list[str]:
+    """How a run resumed with `config` (a TrainConfig as a dict) on data of `dataset_fingerprint` differs
+    from the run that wrote the checkpoint whose metadata is `meta`, ignoring the `free` fields."""
+    extra = meta.get("extra", {})
     saved = extra.get("train_config", {})
     changes = [f"{key} (checkpoint {saved[key]!r}, now {value!r})" for key, value in config.items()
                if key not in free and key in saved and saved[key] != value]

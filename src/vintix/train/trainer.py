@@ -299,8 +299,9 @@ class Trainer:
         self.step, self.tokens = 0, 0
         resume = resumable_checkpoint(self.out, note=print if self.dist.is_main else None)
         if resume is not None:
-            check_resumable(resume, self.model.config, self.data.groups, [n.task for n in self.data.task_norms])
-            changes = resume_changes(resume, dataclasses.asdict(config), self.data.fingerprint, FREE_ON_RESUME)
+            meta = check_resumable(resume, self.model.config, self.data.groups,
+                                   [n.task for n in self.data.task_norms])
+            changes = resume_changes(meta, dataclasses.asdict(config), self.data.fingerprint, FREE_ON_RESUME)
             if changes and not config.allow_resume_changes:
                 raise CheckpointError(
                     f"cannot resume from {resume}: this run differs from the one that wrote it in " + "; ".join(changes)
