@@ -18,7 +18,7 @@ from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
-from vintix.tasks import ReferenceScore, TaskSpec, get_task, list_tasks, resolve_tasks
+from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
     from vintix.collect import CollectionPlan
@@ -468,20 +468,15 @@ def demonstrator_runs(
 
 def registry_dims(task_name: str) -> tuple[int, int] | None:
     """(obs_dim, act_dim) the registry expects for a dataset's task name; None if it is not ours."""
-    try:
-        spec = get_task(task_name)
-    except VintixError:
-        return None
-    return spec.obs_dim, spec.act_dim
+    spec = find_task(task_name)
+    return None if spec is None else (spec.obs_dim, spec.act_dim)
 
 
 def registry_episode_limit(task_name: str) -> int | None:
     """The most steps an episode of a dataset's task can have; None if the registry does not know the task
     or its episodes end themselves (Bi-DexHands' episode length is a mean)."""
-    try:
-        return get_task(task_name).episode_limit
-    except VintixError:
-        return None
+    spec = find_task(task_name)
+    return None if spec is None else spec.episode_limit
 
 
 @data_app.command("validate")

@@ -29,7 +29,7 @@ from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix
-from vintix.tasks import action_box, get_task, make_env
+from vintix.tasks import action_box, find_task, get_task, make_env
 from vintix.train.checkpoint import intact_alternative_hint
 
 
@@ -113,7 +113,8 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
         mean = means.mean(0)
         std = ((stds**2 + means**2).mean(0) - mean**2).clamp_min(0).sqrt().clamp_min(model.config.std_floor)
         reward_scale, source = spec.reward_scale, "group-pooled"
-    spec_dims = _registry_dims(task)
+    known = find_task(task)
+    spec_dims = None if known is None else (known.obs_dim, known.act_dim)
     if spec_dims is not None and spec_dims[0] != model.groups[group].obs_dim:
         raise AgentInputError(
             f"task {task!r} has {spec_dims[0]}-dim observations but the checkpoint's group {group!r} expects "
@@ -145,14 +146,6 @@ def _numbers(what: str, values: object, dtype: type) -> np.ndarray:
     if dtype is bool and not np.isin(array, (0, 1)).all():
         raise AgentInputError(f"{what} must be booleans (or 0/1), got {values!r}"[:300])
     return array.astype(dtype)
-
-
-def _registry_dims(task: str) -> tuple[int, int] | None:
-    try:
-        spec = get_task(task)
-    except UnknownTaskError:
-        return None
-    return spec.obs_dim, spec.act_dim
 
 
 @dataclass(frozen=True)

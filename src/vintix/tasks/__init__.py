@@ -1,7 +1,7 @@
 """Stage 1 of the pipeline: the task registry and the environment factory."""
 
 from vintix.tasks.make import action_box, gymnasium_id, make_env, register_gymnasium_envs
-from vintix.tasks.registry import DOMAINS, ReferenceScore, TaskSpec, get_task, list_tasks, resolve_tasks
+from vintix.tasks.registry import DOMAINS, ReferenceScore, TaskSpec, find_task, get_task, list_tasks, resolve_tasks
 
 register_gymnasium_envs()
 
@@ -10,6 +10,7 @@ __all__ = [
     "ReferenceScore",
     "TaskSpec",
     "action_box",
+    "find_task",
     "get_task",
     "gymnasium_id",
     "list_tasks",

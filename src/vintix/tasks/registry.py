@@ -134,6 +134,13 @@ def get_task(name: str) -> TaskSpec:
     raise UnknownTaskError(f"unknown task {name!r}.{hint} Run `vintix tasks` to list all {len(_tasks())} tasks.")
 
 
+def find_task(name: str) -> TaskSpec | None:
+    """The task called `name` (or one of its aliases), or None for a name the registry does not know
+    (a dataset's or checkpoint's task from elsewhere)."""
+    index = _names_and_aliases().get(name)
+    return None if index is None else _tasks()[index]
+
+
 def list_tasks(domain: str | None = None, split: str | None = None, group: str | None = None) -> list[TaskSpec]:
     """Tasks in registry order, optionally filtered; an unknown filter value is an error, not an empty list."""
     every_task = list(_tasks().values())
