@@ -196,3 +196,16 @@ def test_report_options_out_of_range_are_refused(two_results, tmp_path):
         result = CliRunner().invoke(app, ["report", str(two_results / "ad"), "--out", str(tmp_path / "r"), *option])
         assert result.exit_code == 2 and message in result.output, result.output
     assert not (tmp_path / "r").exists()
+
+
+def test_model_card_option_puts_the_released_models_scores_beside_each_task_and_domain(two_results, tmp_path):
+    result = CliRunner().invoke(app, ["report", str(two_results / "ad"), "--out", str(tmp_path / "report"),
+                                      "--plateau-shots", "2", "--model-card"])
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "model card (IQM) |" in report and "| model card |" in report
+    reach = next(line for line in report.splitlines() if line.startswith("| reach-v3 | AD |"))
+    pendulum = next(line for line in report.splitlines() if line.startswith("| InvertedPendulum-v5 | AD |"))
+    assert reach.split(" | ")[7] == "1.01"  # the card's reach-v2
+    assert pendulum.split(" | ")[7] == "1.00"  # the card's invertedpendulum_v4
+    assert next(line for line in report.splitlines() if line.startswith("| mujoco")).endswith("| 0.99 |")

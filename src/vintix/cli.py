@@ -631,6 +631,57 @@ def train_command(
         raise _fail(error) from None
 
 
+_SNAPSHOT_HELP = ("the authors' release snapshot folder (model.pth, config.json, metadata.json), fetched by you: "
+                  "huggingface-cli download dunnolab/Vintix --local-dir DIR")
+
+
+@app.command("import-official")
+def import_official_command(
+    snapshot: Annotated[Path, typer.Argument(help=_SNAPSHOT_HELP)],
+    out: Annotated[Path, typer.Option(help="folder for our checkpoint (model.safetensors + model.json)")] = Path(
+        "vintix-official"),
+) -> None:
+    """Import the authors' released Vintix model as one of our checkpoints (nothing is downloaded)."""
+    from vintix.model.official import RELEASE_SHA256, import_official
+
+    try:
+        with console.status(f"importing {snapshot} (reading and checking the weights)"):
+            result = import_official(snapshot, out)
+    except (VintixError, OSError) as error:
+        raise _fail(error) from None
+    if result.known_release:
+        console.print(f"model.pth sha256 {result.sha256}: the known release")
+    else:
+        console.print(f"[yellow]model.pth sha256 {result.sha256} is not the known release[/yellow] ({RELEASE_SHA256}); "
+                      "imported because every key and shape matched", highlight=False)
+    if result.renamed:
+        console.print("release names on our envs: " + ", ".join(f"{a} -> {b}" for a, b in result.renamed.items()),
+                      highlight=False)
+    if result.adapted:
+        console.print(f"observations mapped onto the release's layout for: {', '.join(result.adapted)}")
+    if result.derived_tasks:
+        console.print(f"statistics derived from the released setpoints for: {', '.join(result.derived_tasks)}")
+    console.print(f"wrote a checkpoint of {result.tasks} tasks to {result.directory}; evaluate it with "
+                  f"vintix eval --checkpoint {result.directory} --tasks ...", highlight=False)
+
+
+@app.command("export-official")
+def export_official_command(
+    checkpoint: Annotated[Path, typer.Argument(help="our checkpoint directory, a training run, or a shipped model")],
+    out: Annotated[Path, typer.Option(help="folder for model.pth, config.json and metadata.json")] = Path(
+        "vintix-release"),
+) -> None:
+    """Write a checkpoint in the authors' release format, loadable by their code unchanged."""
+    from vintix.agent import resolve_checkpoint
+    from vintix.model.official import export_official
+
+    try:
+        directory = export_official(resolve_checkpoint(checkpoint), out)
+    except (VintixError, OSError) as error:
+        raise _fail(error) from None
+    console.print(f"wrote model.pth, config.json and metadata.json to {directory}", highlight=False)
+
+
 @bench_app.command("train")
 def bench_train(
     presets: Annotated[list[str] | None, typer.Argument(
@@ -861,12 +912,15 @@ def report_command(
         help="reference table: ours (our measured demonstrators and random policy; every task has it) or paper "
              "(the paper's table; what comparisons with its numbers need)")] = "ours",
     plateau_shots: Annotated[int, typer.Option(min=1, help="k of the best-k-shot plateau (converged score)")] = 10,
+    model_card: Annotated[bool, typer.Option(
+        help="put the released model's model-card scores beside each task and domain (results of a model "
+             "imported with vintix import-official; the card uses its own reference returns)")] = False,
 ) -> None:
     """Markdown report with PNG figures: score vs shot per task and domain, converged vs the paper's."""
     from vintix.report import write_report
 
     try:
-        path, notes = write_report(results, out, reference, plateau_shots)
+        path, notes = write_report(results, out, reference, plateau_shots, model_card)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     for note in notes:

@@ -30,6 +30,7 @@ from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix
 from vintix.tasks import action_box, find_task, get_task, make_env
+from vintix.tasks.layouts import ObsLayout
 from vintix.train.checkpoint import intact_alternative_hint
 
 
@@ -59,6 +60,12 @@ class AgentTask:
     """'task' (the checkpoint's statistics of this task) or 'group-pooled' (held-out task)"""
     action_low: np.ndarray
     action_high: np.ndarray
+    obs_layout: ObsLayout | None = None
+    """how the env's observation becomes the group's (`vintix.tasks.layouts`); None: as it is"""
+
+    def env_obs_dim(self, model: Vintix) -> int:
+        """Dimension of the observations the env gives (and `Agent.act` takes)."""
+        return self.obs_layout.env_dim if self.obs_layout is not None else model.groups[self.group].obs_dim
 
 
 @cache
@@ -99,6 +106,7 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
         dim = model.groups[group].obs_dim
         mean, std = model.obs_mean[index, :dim], model.obs_std[index, :dim]
         reward_scale, source = float(model.reward_scale[index]), "task"
+        layout = model.task_norms[index].obs_layout
     else:
         spec = get_task(task)  # raises UnknownTaskError naming close matches
         group = spec.group
@@ -110,15 +118,16 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
         dim = model.groups[group].obs_dim
         members = [i for i, norm in enumerate(model.task_norms) if norm.group == group]
         means, stds = model.obs_mean[members, :dim], model.obs_std[members, :dim]
+        divisor_floor = model.config.std_floor + model.config.std_epsilon  # as the model's own divisors
         mean = means.mean(0)
-        std = ((stds**2 + means**2).mean(0) - mean**2).clamp_min(0).sqrt().clamp_min(model.config.std_floor)
-        reward_scale, source = spec.reward_scale, "group-pooled"
+        std = ((stds**2 + means**2).mean(0) - mean**2).clamp_min(0).sqrt().clamp_min(divisor_floor)
+        reward_scale, source, layout = spec.reward_scale, "group-pooled", None
     known = find_task(task)
-    spec_dims = None if known is None else (known.obs_dim, known.act_dim)
-    if spec_dims is not None and spec_dims[0] != model.groups[group].obs_dim:
+    env_dim = layout.env_dim if layout is not None else model.groups[group].obs_dim
+    if known is not None and known.obs_dim != env_dim:
         raise AgentInputError(
-            f"task {task!r} has {spec_dims[0]}-dim observations but the checkpoint's group {group!r} expects "
-            f"{model.groups[group].obs_dim}; the checkpoint was trained on another version of this env"
+            f"task {task!r} has {known.obs_dim}-dim observations but the checkpoint's group {group!r} expects "
+            f"{env_dim}; the checkpoint was trained on another version of this env"
         )
     if action_space is not None:
         low, high = np.asarray(action_space.low, np.float32), np.asarray(action_space.high, np.float32)
@@ -129,7 +138,7 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
         raise AgentInputError(
             f"task {task!r}: action space has shape {low.shape}, group {group!r} acts in {act_dim} dims"
         )
-    return AgentTask(task, group, mean, std, reward_scale, source, low, high)
+    return AgentTask(task, group, mean, std, reward_scale, source, low, high, layout)
 
 
 def _numbers(what: str, values: object, dtype: type) -> np.ndarray:
@@ -298,6 +307,11 @@ class Agent:
                 "variation) or returned an invalid value; the agent does not sanitize inputs"
             )
 
+    def _model_obs(self, env: int, obs: np.ndarray) -> np.ndarray:
+        """Env `env`'s observation(s) in its group's channel layout."""
+        layout = self.tasks[env].obs_layout
+        return np.asarray(obs) if layout is None else layout.apply(np.asarray(obs))
+
     def _tokens(
         self, obs: Sequence[np.ndarray], prev_actions: dict[str, torch.Tensor], prev_rewards: np.ndarray,
         episode_starts: np.ndarray,
@@ -307,12 +321,13 @@ class Agent:
         tokens = torch.empty(len(self.tasks), steps, self.model.config.d_model, device=self.device)
         for group, batch in self._groups.items():
             envs = batch.envs.tolist()
-            o = torch.as_tensor(np.stack([obs[i] for i in envs]), dtype=torch.float32, device=self.device)
+            o = torch.as_tensor(np.stack([self._model_obs(i, obs[i]) for i in envs]), dtype=torch.float32,
+                                device=self.device)
             o = (o - batch.obs_mean.unsqueeze(1)) / batch.obs_std.unsqueeze(1)
             reward = torch.as_tensor(prev_rewards[envs], dtype=torch.float32, device=self.device)
             reward = reward * batch.reward_scale.unsqueeze(1)
             start = torch.as_tensor(episode_starts[envs], device=self.device)
-            tokens[batch.envs] = self.model.encoders[group](o, prev_actions[group], reward, start)
+            tokens[batch.envs] = self.model.encode(group, o, prev_actions[group], reward, start)
         return tokens
 
     @_one_call_at_a_time
@@ -339,7 +354,7 @@ class Agent:
             )
         observations = [_numbers(f"observation of env {i}", o, np.float32) for i, o in enumerate(obs)]
         for i, task in enumerate(self.tasks):
-            self._check("observation", i, observations[i], (self.model.groups[task.group].obs_dim,))
+            self._check("observation", i, observations[i], (task.env_obs_dim(self.model),))
             self._check("previous reward", i, rewards[i : i + 1], (1,))
         if self.cache.length == 0 and not starts.all():
             raise AgentInputError(
@@ -390,7 +405,7 @@ class Agent:
         for i, task in enumerate(self.tasks):
             spec = self.model.groups[task.group]
             self._check("prompt observations", i, _numbers("prompt observations", observations[i], np.float64),
-                        (steps, spec.obs_dim))
+                        (steps, task.env_obs_dim(self.model)))
             self._check("prompt actions", i, _numbers("prompt actions", actions[i], np.float64), (steps, spec.act_dim))
             self._check("prompt rewards", i, _numbers("prompt rewards", rewards[i], np.float64), (steps,))
         # Row t of a history: o_t, a_t taken at o_t, r_t after it; token t carries a_{t-1}, r_{t-1}.

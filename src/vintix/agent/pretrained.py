@@ -4,12 +4,15 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 from importlib import resources
 from pathlib import Path
 
 from vintix.model.checkpoint import CONFIG_FILE, CheckpointError
+from vintix.model.official import WEIGHTS, import_official, is_official_snapshot
 from vintix.train.checkpoint import model_directory
+from vintix.userdirs import user_cache_dir
 
 
 def _shipped_root() -> Path:
@@ -22,10 +25,25 @@ def shipped_models() -> list[str]:
     return sorted(p.name for p in root.iterdir() if (p / CONFIG_FILE).is_file()) if root.is_dir() else []
 
 
+def imported_snapshot(snapshot: Path) -> Path:
+    """Our checkpoint of an official release snapshot, imported once into the user cache and reused while
+    the snapshot's weights file is unchanged (same path, size and modification time)."""
+    weights = (snapshot / WEIGHTS).resolve()
+    stat = weights.stat()
+    key = hashlib.sha256(f"{weights}|{stat.st_size}|{stat.st_mtime_ns}".encode()).hexdigest()[:16]
+    directory = user_cache_dir("official") / key
+    if not (directory / CONFIG_FILE).is_file():
+        import_official(snapshot, directory)
+    return directory
+
+
 def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
-    """The model folder meant by a path (a checkpoint, or a training run: `model_directory`) or by the
-    name of a shipped model; a path that exists always wins over a shipped name."""
+    """The model folder meant by a path (a checkpoint, a training run: `model_directory`, or an official
+    release snapshot: `imported_snapshot`) or by the name of a shipped model; a path that exists always
+    wins over a shipped name."""
     path = Path(name_or_path)
+    if is_official_snapshot(path):
+        return imported_snapshot(path)
     if path.exists():
         return model_directory(path)
     shipped = _shipped_root() / str(name_or_path)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
+from vintix.tasks.layouts import ObsLayout
 
 WEIGHTS_FILE = "model.safetensors"
 CONFIG_FILE = "model.json"
@@ -34,17 +36,36 @@ class CheckpointError(VintixError, ValueError):
 
 def model_metadata(model: Vintix, extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """Everything besides the weights that rebuilds `model`, as JSON-ready data."""
+    return metadata_for(model.config, list(model.groups.values()), model.task_norms, extra)
+
+
+def metadata_for(config: ModelConfig, groups: Sequence[GroupSpec], norms: Sequence[TaskNorm],
+                 extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The JSON half of a checkpoint of a model with this config, groups and normalization (`build_model`
+    builds it before any weights exist)."""
     return {
         "format_version": FORMAT_VERSION,
-        "config": dataclasses.asdict(model.config),
-        "groups": [dataclasses.asdict(g) for g in model.groups.values()],
-        "task_norms": [
-            {"task": t.task, "group": t.group, "obs_mean": [float(x) for x in t.obs_mean],
-             "obs_std": [float(x) for x in t.obs_std], "reward_scale": float(t.reward_scale)}
-            for t in model.task_norms
-        ],
+        "config": dataclasses.asdict(config),
+        "groups": [dataclasses.asdict(g) for g in groups],
+        "task_norms": [task_norm_json(t) for t in norms],
         "extra": extra or {},
     }
+
+
+def task_norm_json(norm: TaskNorm) -> dict[str, Any]:
+    """A task's normalization as JSON-ready data (`task_norm_from_json` reads it back)."""
+    data: dict[str, Any] = {
+        "task": norm.task, "group": norm.group, "obs_mean": [float(x) for x in norm.obs_mean],
+        "obs_std": [float(x) for x in norm.obs_std], "reward_scale": float(norm.reward_scale)}
+    if norm.obs_layout is not None:  # absent rather than null, so older checkpoints' files stay as they were
+        data["obs_layout"] = {"env_dim": norm.obs_layout.env_dim, "channels": list(norm.obs_layout.channels)}
+    return data
+
+
+def task_norm_from_json(data: dict[str, Any]) -> TaskNorm:
+    layout = data.get("obs_layout")
+    return TaskNorm(**{**data, "obs_layout": None if layout is None else
+                       ObsLayout(int(layout["env_dim"]), tuple(int(c) for c in layout["channels"]))})
 
 
 def save_pretrained(model: Vintix, directory: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> Path:
@@ -86,7 +107,7 @@ def build_model(meta: dict[str, Any]) -> Vintix:
         raise CheckpointError(f"checkpoint config has fields {unknown} that this vintix's ModelConfig lacks")
     try:
         config = ModelConfig(**meta["config"])
-        groups, norms = [GroupSpec(**g) for g in meta["groups"]], [TaskNorm(**t) for t in meta["task_norms"]]
+        groups, norms = [GroupSpec(**g) for g in meta["groups"]], [task_norm_from_json(t) for t in meta["task_norms"]]
         # Twice the model: it and the weights read into it.
         return build_within_memory(lambda: Vintix(config, groups, norms), 2, "the model this checkpoint describes",
                                    "Its config is damaged, or it needs a machine with more memory")

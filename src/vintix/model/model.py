@@ -23,6 +23,7 @@ from torch import nn
 
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.fields import check_field_types
+from vintix.tasks.layouts import ObsLayout
 
 # ----------------------------------------------------------------------------------------------
 # Configuration
@@ -63,7 +64,13 @@ class ModelConfig:
     """dropout on attention probabilities and residual branches (the paper lists none; on CPU any
     attention dropout forces the unfused attention path, about 2x slower at 1024 steps)"""
     std_floor: float = 1e-2
-    """lower bound on per-task observation std, so near-constant channels are not blown up"""
+    """lower bound on per-task observation std, so near-constant channels are not blown up (0: none)"""
+    std_epsilon: float = 0.0
+    """added to the (floored) std: observations are divided by ``max(std, std_floor) + std_epsilon``; the
+    official release divides by ``std + 1e-6`` (std_floor 0, std_epsilon 1e-6)"""
+    shared_padding: bool = False
+    """one learned previous-action/previous-reward padding vector for all groups, as in the official
+    release, instead of one per group"""
     mask_reward: bool = False
     """'AD without rewards' ablation: the reward embedding is always the padding vector"""
     activation: str = "gelu"
@@ -89,9 +96,12 @@ class ModelConfig:
                  "context_len": self.context_len}
         small = [f"{k}={v}" for k, v in sizes.items() if v < 1] + ([f"head_layers={self.head_layers}"]
                                                                   if self.head_layers < 0 else [])
-        if small or not 0 <= self.dropout < 1 or not self.std_floor > 0:
-            raise ModelConfigError(f"sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor > 0; got "
-                             f"{', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}")
+        divisor_ok = self.std_floor >= 0 and self.std_epsilon >= 0 and self.std_floor + self.std_epsilon > 0
+        if small or not 0 <= self.dropout < 1 or not divisor_ok:
+            raise ModelConfigError(
+                "sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor and std_epsilon >= 0 and not "
+                f"both 0; got {', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}"
+                f"{'' if small else f', std_epsilon={self.std_epsilon}'}")
         if self.d_model % self.n_heads:
             raise ModelConfigError(
                 f"d_model = {self.obs_emb_dim}+{self.act_emb_dim}+{self.rew_emb_dim} = "
@@ -110,7 +120,9 @@ class ModelConfig:
 #   Measured: ~4k training tokens/s on 2 cores (one group, fp32), ~14M tokens an hour; a 512-step
 #   window roughly doubles that, since attention dominates at this width.
 # small: a single-GPU model (~14M backbone parameters) with a 2048-step window.
-# paper: the paper's hyperparameter table (20 layers, 16 heads, 511+511+2, MLP 4096, 8192 steps).
+# paper: the paper's hyperparameter table (20 layers, 16 heads, 511+511+2, MLP 4096, 8192 steps) with the
+#   official release's LeakyReLU encoders/heads, shared padding and ``std + 1e-6`` normalization, so a
+#   model trained at this preset exports to the authors' format (`vintix.model.official`).
 PRESETS: dict[str, ModelConfig] = {
     "tiny": ModelConfig(),
     "small": ModelConfig(
@@ -119,7 +131,8 @@ PRESETS: dict[str, ModelConfig] = {
     ),
     "paper": ModelConfig(
         n_layers=20, n_heads=16, obs_emb_dim=511, act_emb_dim=511, rew_emb_dim=2,
-        mlp_dim=4096, context_len=8192,
+        mlp_dim=4096, context_len=8192, activation="leaky_relu", std_floor=0.0, std_epsilon=1e-6,
+        shared_padding=True,
     ),
 }
 
@@ -149,6 +162,9 @@ class TaskNorm:
     obs_mean: Sequence[float] | np.ndarray
     obs_std: Sequence[float] | np.ndarray
     reward_scale: float = 1.0
+    obs_layout: ObsLayout | None = None
+    """how this task's env observation maps onto the group's channels, where they differ (a model of
+    Humanoid-v4's 376 channels acting on Humanoid-v5); None: the env's observation as it is"""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -303,22 +319,27 @@ class GroupEncoder(nn.Module):
         # No reward encoder at all under mask_reward: parameters that never get a gradient would
         # make DDP fail.
         self.rew = None if config.mask_reward else _reward_mlp(config)
-        # Episode starts have no previous action/reward; a learned vector says so.
-        self.act_pad = nn.Parameter(torch.empty(config.act_emb_dim))
-        self.rew_pad = nn.Parameter(torch.empty(config.rew_emb_dim))
+        # Episode starts have no previous action/reward; a learned vector says so (the model's shared
+        # pair under shared_padding: `Vintix.encode` hands the right pair in).
+        self.act_pad = None if config.shared_padding else _padding(config.act_emb_dim)
+        self.rew_pad = None if config.shared_padding else _padding(config.rew_emb_dim)
 
     def forward(
         self, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
-        episode_start: torch.Tensor,
+        episode_start: torch.Tensor, act_pad: torch.Tensor, rew_pad: torch.Tensor,
     ) -> torch.Tensor:
         start = episode_start.unsqueeze(-1)
         e_obs = self.obs(obs)
-        e_act = torch.where(start, self.act_pad, self.act(prev_action))
+        e_act = torch.where(start, act_pad, self.act(prev_action))
         if self.rew is None:
-            e_rew = self.rew_pad.expand(*e_obs.shape[:-1], -1)
+            e_rew = rew_pad.expand(*e_obs.shape[:-1], -1)
         else:
-            e_rew = torch.where(start, self.rew_pad, self.rew(prev_reward.unsqueeze(-1)))
+            e_rew = torch.where(start, rew_pad, self.rew(prev_reward.unsqueeze(-1)))
         return torch.cat([e_obs, e_act, e_rew], dim=-1)
+
+
+def _padding(dim: int) -> nn.Parameter:
+    return nn.Parameter(torch.empty(dim))
 
 
 def _reward_mlp(config: ModelConfig) -> nn.Sequential:
@@ -386,7 +407,11 @@ class Vintix(nn.Module):
                     f"task {t.task!r}: obs_mean {mean.shape} / obs_std {std.shape} do not match "
                     f"group {t.group!r} obs_dim {dim}"
                 )
-            obs_mean[i, :dim], obs_std[i, :dim] = mean, np.maximum(std, config.std_floor)
+            if t.obs_layout is not None and t.obs_layout.dim != dim:
+                raise ValueError(f"task {t.task!r}: its obs_layout builds {t.obs_layout.dim} channels, group "
+                                 f"{t.group!r} reads {dim}")
+            obs_mean[i, :dim] = mean
+            obs_std[i, :dim] = np.maximum(std, np.float32(config.std_floor)) + np.float32(config.std_epsilon)
         self.register_buffer("obs_mean", torch.tensor(obs_mean))
         self.register_buffer("obs_std", torch.tensor(obs_std))
         self.register_buffer(
@@ -398,6 +423,8 @@ class Vintix(nn.Module):
         self.register_buffer("alibi_slopes", alibi_slopes(config.n_heads), persistent=False)
 
         self.encoders = nn.ModuleDict({g.name: GroupEncoder(g, config) for g in groups})
+        self.act_pad = _padding(config.act_emb_dim) if config.shared_padding else None
+        self.rew_pad = _padding(config.rew_emb_dim) if config.shared_padding else None
         self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
         self.ln_f = nn.LayerNorm(config.d_model)
         self.heads = nn.ModuleDict(
@@ -441,7 +468,8 @@ class Vintix(nn.Module):
     def normalize(
         self, task_idx: torch.Tensor, obs: torch.Tensor, reward: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Per-task z-scored observations ``[B, T, obs_dim]`` and scaled rewards ``[B, T]``."""
+        """Per-task z-scored observations ``[B, T, obs_dim]`` and scaled rewards ``[B, T]``. The ``obs_std``
+        buffer holds the divisor, ``max(std, std_floor) + std_epsilon``."""
         dim = obs.shape[-1]
         mean = self.obs_mean[task_idx, :dim].unsqueeze(1)
         std = self.obs_std[task_idx, :dim].unsqueeze(1)
@@ -463,7 +491,18 @@ class Vintix(nn.Module):
         if (self.task_group[task_idx] != self._group_index[group]).any():
             raise ValueError(f"task_idx {task_idx.tolist()} holds tasks outside group {group!r}")
         obs, prev_reward = self.normalize(task_idx, obs, prev_reward)
-        return self.encoders[group](obs, prev_action, prev_reward, step_num == 0)
+        return self.encode(group, obs, prev_action, prev_reward, step_num == 0)
+
+    def encode(
+        self, group: str, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
+        episode_start: torch.Tensor,
+    ) -> torch.Tensor:
+        """Tokens of one group from already normalized observations and scaled rewards."""
+        encoder = self.encoders[group]
+        owner = self if self.config.shared_padding else encoder
+        act_pad, rew_pad = owner.act_pad, owner.rew_pad
+        assert isinstance(act_pad, torch.Tensor) and isinstance(rew_pad, torch.Tensor)  # the owner has both
+        return encoder(obs, prev_action, prev_reward, episode_start, act_pad, rew_pad)
 
     def backbone(self, x: torch.Tensor) -> torch.Tensor:
         """Causal transformer over tokens ``[B, T, d_model]``, positions 0..T-1."""

@@ -32,7 +32,14 @@ from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci
 from vintix.tasks import get_task
-from vintix.tasks.scores import Reference, check_table, missing_reference_note, reference
+from vintix.tasks.scores import (
+    MODEL_CARD_DOMAIN_IQM,
+    Reference,
+    check_table,
+    missing_reference_note,
+    model_card_scores,
+    reference,
+)
 
 
 @dataclass
@@ -285,10 +292,11 @@ def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int)
 
 
 def write_report(folders: list[Path], out: Path, table: str = "paper",
-                 plateau_shots: int = 10) -> tuple[Path, list[str]]:
+                 plateau_shots: int = 10, model_card: bool = False) -> tuple[Path, list[str]]:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
-    Returns the report's path and notes (tasks without a reference score, ablated folders without a
-    true-reward folder to compare with)."""
+    `model_card`: put the released model's model-card scores beside each task and domain (for results of
+    the imported official model). Returns the report's path and notes (tasks without a reference score,
+    ablated folders without a true-reward folder to compare with)."""
     if plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     check_output_kind(out, "report")
@@ -322,10 +330,12 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
         lines.append(f"\nMeta-World goal protocol: {'; '.join(sorted(goal))}.\n")
 
     per_label = ["shot 1", "converged"] + (["success shot 1", "success converged"] if with_success else [])
+    card = model_card_scores() if model_card else {}
     lines += ["\n## Per domain\n",
               f"| domain ({table}-normalized) | "
-              + " | ".join(f"{r.label}: {c}" for r in results for c in per_label) + " |",
-              "|---|" + "---|" * len(per_label) * len(results)]
+              + " | ".join(f"{r.label}: {c}" for r in results for c in per_label)
+              + (" | model card (IQM) |" if model_card else " |"),
+              "|---|" + "---|" * (len(per_label) * len(results) + model_card)]
     domains = sorted({d for r in results for d in r.domains.values()})
     for domain in domains:
         curves, cells = {}, []
@@ -342,6 +352,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
             if with_success:
                 cells += _success_cells(r, variants, plateau_shots)
         plot_curves(curves, f"{domain}: normalized score vs shot", figures / f"domain-{_slug(domain)}.png")
+        if model_card:
+            iqm = MODEL_CARD_DOMAIN_IQM.get(domain.removesuffix(" train"))  # the card's IQMs are of training tasks
+            cells.append("—" if iqm is None else f"{iqm:.2f}")
         lines.append(f"| {domain} | " + " | ".join(cells) + " |")
     lines.append("")
     for domain in domains:
@@ -352,8 +365,8 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
     goal_blind = read_goal_blind()
     success_columns = " success shot 1 | success converged | goal-blind success |" if with_success else ""
     lines += ["\n## Per task\n", f"| task ({table}-normalized) | label | runs | shot 1 | converged | from shot | "
-              "paper's Vintix |" + success_columns,
-              "|---|---|---|---|---|---|---|" + ("---|---|---|" if with_success else "")]
+              "paper's Vintix |" + (" model card |" if model_card else "") + success_columns,
+              "|---|---|---|---|---|---|---|" + "---|" * (model_card + 3 * with_success)]
     bars = []
     for variant in sorted({v for r in results for v in r.scores}):
         curves = {}
@@ -368,6 +381,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
             bars.append((variant, r.label, float(scores[:, 0].mean()), value, paper))
             cells = [variant, r.label, str(len(scores)), _ci(*curves[r.label][0][0]), f"{value:.2f}", str(start),
                      "—" if paper is None else f"{paper:.2f}"]
+            if model_card:
+                published_card = card.get(r.tasks[variant]) if "[" not in variant else None
+                cells.append("—" if published_card is None else f"{published_card:.2f}")
             if with_success:
                 blind = goal_blind.get(r.tasks[variant])
                 cells += _success_cells(r, [variant], plateau_shots)

@@ -22,6 +22,7 @@ import csv
 import io
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
+from functools import cache
 from importlib import resources
 from pathlib import Path
 
@@ -153,3 +154,16 @@ def our_reference_scores(task: str, path: Path | None = None) -> tuple[Reference
     if not set(POLICIES) <= set(found):
         return None
     return found["random"], found["demonstrator"]
+
+
+MODEL_CARD_DOMAIN_IQM = {"mujoco": 0.99, "metaworld": 0.99, "bidexhands": 0.92, "industrial_benchmark": 0.99}
+"""The released model's per-domain IQM of normalized score, from its model card"""
+
+
+@cache
+def model_card_scores() -> dict[str, float]:
+    """The released model's per-task normalized scores from its model card (``dunnolab/Vintix`` README), by
+    our task name (``model_card_scores.csv`` keeps the card's names). The card normalizes with its own
+    references (Hopper: an expert of 3,246, not the paper table's 2,350): compare, do not subtract."""
+    text = resources.files("vintix.tasks").joinpath("model_card_scores.csv").read_text()
+    return {row["task"]: float(row["normalized_score"]) for row in csv.DictReader(io.StringIO(text))}
