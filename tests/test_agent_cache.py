@@ -84,3 +84,14 @@ def test_a_chunk_that_would_wrap_the_ring_is_refused():
         assert "one at a time" in str(error)
     else:
         raise AssertionError("a wrapping chunk was accepted")
+
+
+def test_bench_infer_runs_and_prints_its_table():
+    from typer.testing import CliRunner
+
+    from vintix.cli import app
+
+    result = CliRunner().invoke(app, ["bench", "infer", "tiny", "--envs", "2", "--repeats", "2", "--no-recompute",
+                                      "--threads", "1"])
+    assert result.exit_code == 0, result.output
+    assert "tiny" in result.output and "literal run check" in result.output

@@ -100,6 +100,7 @@ def _agent(model: Vintix, envs: int) -> tuple[Agent, Callable[[], object]]:
     rng = np.random.default_rng(0)
     obs = [rng.normal(size=GROUP.obs_dim).astype(np.float32) for _ in range(envs)]
     rewards, starts = np.ones(envs), np.zeros(envs, dtype=bool)
+    agent.act(obs, rewards, ~starts)  # a context begins with an episode start; the timed steps go on from it
     return agent, lambda: agent.act(obs, rewards, starts)
 
 
