@@ -766,6 +766,9 @@ def bench_infer(
     recompute: Annotated[bool, typer.Option(
         help="also time a full-window recompute (minutes at the paper's size)")] = True,
     threads: Annotated[int | None, typer.Option(min=1, help="torch intra-op threads (default: torch's)")] = None,
+    window: Annotated[int | None, typer.Option(
+        min=1, help="context length in steps instead of the preset's (a paper-size cache for 16 envs at its "
+                    "8192 steps needs 20 GiB)")] = None,
 ) -> None:
     """Agent step latency and throughput: KV cache (first-full vs steady) vs full-window recompute."""
     import os
@@ -788,13 +791,14 @@ def bench_infer(
     notes = []
     for name in presets or ["tiny", "small", "paper"]:
         for batch in envs or [1, 16]:
-            cache_bytes, recompute_bytes = memory_needed(name, batch)
+            cache_bytes, recompute_bytes = memory_needed(name, batch, window)
             if cache_bytes > memory / 2:
                 notes.append(f"{name} × {batch} envs skipped: its KV cache needs {cache_bytes / 2**30:.1f} GiB "
                              f"of this machine's {memory / 2**30:.0f} GiB")
                 continue
             timing = time_inference(name, batch, repeats if name != "paper" else max(3, repeats // 4),
-                                    (1 if name == "paper" else 3) if recompute and recompute_bytes < memory / 2 else 0)
+                                    (1 if name == "paper" else 3) if recompute and recompute_bytes < memory / 2 else 0,
+                                    window)
             speedup = timing.cache_speedup
             table.add_row(name, f"{timing.parameters / 1e6:.1f}M", str(timing.window), str(batch),
                           f"{timing.first_full_ms:.2f}", f"{timing.steady_ms:.2f}",

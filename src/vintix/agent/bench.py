@@ -25,7 +25,7 @@ import torch
 
 from vintix.agent.agent import Agent
 from vintix.agent.cache import KVCache
-from vintix.model.model import GroupSpec, TaskNorm, Vintix, count_parameters, preset
+from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters, preset
 
 GROUP = GroupSpec("metaworld", obs_dim=39, act_dim=4)
 TASK = "reach-v3"
@@ -57,21 +57,27 @@ class InferenceTiming:
         return self.envs * 1000.0 / self.steady_ms
 
 
-def memory_needed(preset_name: str, envs: int) -> tuple[int, int]:
+def bench_config(preset_name: str, window: int | None = None) -> ModelConfig:
+    """`preset_name`'s config, with its context shortened (or lengthened) to `window` steps if given."""
+    return preset(preset_name) if window is None else preset(preset_name, context_len=window)
+
+
+def memory_needed(preset_name: str, envs: int, window: int | None = None) -> tuple[int, int]:
     """Bytes of the KV cache, and of a full-window recompute's largest buffers (the ALiBi bias shared
     across layers, fp32 [H, W, W], and the MLP activations [envs, W, mlp_dim] with a few copies)."""
-    config = preset(preset_name)
+    config = bench_config(preset_name, window)
     window, d = config.context_len, config.d_model
     cache = 2 * config.n_layers * envs * window * d * 4
     recompute = config.n_heads * window * window * 4 + 4 * envs * window * config.mlp_dim * 4
     return cache, recompute
 
 
-def bench_model(preset_name: str) -> Vintix:
-    """A randomly initialized model of `preset_name` with one Meta-World-shaped group, fp32, eval."""
+def bench_model(preset_name: str, window: int | None = None) -> Vintix:
+    """A randomly initialized model of `preset_name` (context `window`, if given) with one Meta-World-shaped
+    group, fp32, eval."""
     torch.manual_seed(0)
     norm = TaskNorm(TASK, GROUP.name, [0.0] * GROUP.obs_dim, [1.0] * GROUP.obs_dim)
-    return Vintix(preset(preset_name), [GROUP], [norm]).eval()
+    return Vintix(bench_config(preset_name, window), [GROUP], [norm]).eval()
 
 
 def set_cache_state(cache: KVCache, length: int) -> None:
@@ -122,9 +128,10 @@ def recompute_step_ms(model: Vintix, envs: int, repeats: int) -> float:
     return _median_ms(step, repeats)
 
 
-def time_inference(preset_name: str, envs: int, repeats: int, recompute_repeats: int) -> InferenceTiming:
+def time_inference(preset_name: str, envs: int, repeats: int, recompute_repeats: int,
+                   window: int | None = None) -> InferenceTiming:
     """Cached first-full and steady-state step latency (and recompute, if `recompute_repeats`)."""
-    model = bench_model(preset_name)
+    model = bench_model(preset_name, window)
     window = model.config.context_len
     agent, step = _agent(model, envs)
     cache = agent.cache
