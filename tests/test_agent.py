@@ -58,7 +58,7 @@ def test_a_mixed_group_batch_acts_like_each_env_alone():
     agent.reset(tasks, spaces)
     together = play(agent, inputs, 12)
     for i, task in enumerate(tasks):
-        agent.reset([task], [spaces[i]])
+        agent.reset([task], [spaces[i]], discard_context=True)
         np.testing.assert_allclose(together[i], play(agent, [inputs[i]], 12)[0], rtol=1e-5, atol=1e-5)
 
 
@@ -71,7 +71,7 @@ def test_envs_dropped_mid_run_leave_the_others_acting_as_before():
     agent = Agent(model)
     agent.reset(tasks, spaces)
     together = play(agent, inputs, 12)
-    agent.reset(tasks, spaces)
+    agent.reset(tasks, spaces, discard_context=True)
     first = play(agent, inputs, 5)
     agent.keep([3, 0])  # reordered, and a group (push's) loses a member
     rest = play(agent, [{k: v[:, 5:] for k, v in inputs[i].items()} for i in (3, 0)], 7)

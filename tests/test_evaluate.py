@@ -196,7 +196,7 @@ def test_zero_and_shuffled_rewards_change_what_the_model_sees_but_returns_stay_t
     assert returns("shuffled") == shuffled
     # What is recorded is what the env paid, not what the model was fed (zeros would sum to 0).
     env = RecordEpisodeStatistics(make_env("reach-v3", seed=0))
-    agent.reset(["reach-v3"], [env.action_space])
+    agent.reset(["reach-v3"], [env.action_space], discard_context=True)
     episodes = play_shots(agent, [env], [RewardFeed("zero", 0)], shots=2)
     assert [e.episode_return for e in episodes[0]] == pytest.approx(list(env.return_queue)) == zero
     assert min(zero) > 10  # reach-v3 pays a dense positive reward every step

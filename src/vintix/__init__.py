@@ -1,9 +1,10 @@
 """Vintix: a cross-domain action model that learns in context (Algorithm Distillation)."""
 
 from vintix.tasks import get_task, list_tasks, make_env
+from vintix.tasks.custom import register_task
 
 __version__ = "0.1.0"
-__all__ = ["Agent", "get_task", "list_tasks", "make_env"]
+__all__ = ["Agent", "get_task", "list_tasks", "make_env", "register_task"]
 
 
 def __getattr__(name: str) -> object:

@@ -80,8 +80,17 @@ def _print_version(value: bool) -> None:
 def _main(
     version: Annotated[bool | None, typer.Option("--version", callback=_print_version, is_eager=True,
                                                     help="print the installed vintix version and exit")] = None,
+    tasks_file: Annotated[list[Path] | None, typer.Option(
+        help="a YAML file of your own tasks to register before the command (repeatable; the environment "
+             "variable VINTIX_TASKS does the same for every process): docs/tasks.md#your-own-environment")] = None,
 ) -> None:
-    pass
+    from vintix.tasks.custom import register_tasks_file
+
+    try:
+        for path in tasks_file or []:
+            register_tasks_file(path)
+    except VintixError as error:
+        raise _fail(error) from None
 
 
 def _runnable_tasks(selectors: list[str]) -> list[TaskSpec]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import os
 import threading
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -186,6 +187,20 @@ class _GroupBatch:
         )
 
 
+def _autoreset_mode(mode: str | gym.vector.AutoresetMode) -> str:
+    """'same-step' or 'next-step' from either spelling; a vector env that does not reset itself
+    (``AutoresetMode.DISABLED``) is reset by the caller, which is same-step for the agent."""
+    modes = {"same-step": "same-step", "next-step": "next-step", gym.vector.AutoresetMode.SAME_STEP: "same-step",
+             gym.vector.AutoresetMode.NEXT_STEP: "next-step", gym.vector.AutoresetMode.DISABLED: "same-step"}
+    if mode not in modes:
+        raise AgentInputError(f"autoreset must be 'same-step', 'next-step' or a gymnasium AutoresetMode, got {mode!r}")
+    return modes[mode]
+
+
+class ContextDiscardedWarning(UserWarning):
+    """`Agent.reset` threw away a context: everything the agent had learned in it."""
+
+
 _AgentMethod = TypeVar("_AgentMethod", bound=Callable[..., Any])
 
 
@@ -224,6 +239,8 @@ class Agent:
         self._groups: dict[str, _GroupBatch] = {}
         self._prev_action: dict[str, torch.Tensor] = {}
         self._busy = threading.Lock()
+        self._awaiting_start = np.zeros(0, dtype=bool)
+        """per env, sat out the last step under next-step autoreset: its next observation starts an episode"""
 
     @classmethod
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Agent:
@@ -248,9 +265,19 @@ class Agent:
         return 0 if self.cache is None else self.cache.length
 
     @_one_call_at_a_time
-    def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None = None) -> None:
+    def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None = None, *,
+              discard_context: bool = False) -> None:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
-        `action_spaces` (default: each task's registry env's action space)."""
+        `action_spaces` (default: each task's registry env's action space).
+
+        This clears the context, which is where in-context learning lives: a new *episode* is an
+        ``episode_start`` flag to `act` / `predict`, never a reset. Clearing a context that holds steps
+        warns (`ContextDiscardedWarning`) unless `discard_context` says it is meant (a new run)."""
+        if self.cache is not None and self.cache.length and not discard_context:
+            warnings.warn(
+                f"agent.reset cleared a context of {self.cache.length} steps, and with it what the agent learned "
+                "in context. For a new episode pass episode_start=True to act/predict instead; to start a new run, "
+                "reset(..., discard_context=True)", ContextDiscardedWarning, stacklevel=3)
         if not tasks:
             raise AgentInputError("reset needs at least one task")
         if action_spaces is not None and len(action_spaces) != len(tasks):
@@ -263,6 +290,7 @@ class Agent:
             for g, b in self._groups.items()
         }
         self.cache = KVCache.for_model(self.model, len(self.tasks))
+        self._awaiting_start = np.zeros(len(self.tasks), dtype=bool)
         self._generator.manual_seed(self.seed)
 
     def _regroup(self) -> None:
@@ -289,6 +317,7 @@ class Agent:
         for group, batch in self._groups.items():
             previous.update(zip(batch.envs.tolist(), self._prev_action[group], strict=True))
         self.tasks = [self.tasks[i] for i in envs]
+        self._awaiting_start = self._awaiting_start[envs]
         self._regroup()
         self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()])
                              for g, b in self._groups.items()}
@@ -306,6 +335,14 @@ class Agent:
                 f"env {env} ({task.task}): {what} contains NaN or inf; the env diverged (check its physics "
                 "variation) or returned an invalid value; the agent does not sanitize inputs"
             )
+
+    def _previous_actions(self) -> list[np.ndarray]:
+        """Each env's last action (zeros before its first), in batch order."""
+        actions: list[np.ndarray] = [np.empty(0)] * len(self.tasks)
+        for group, members in self._groups.items():
+            for i, a in zip(members.envs.tolist(), self._prev_action[group].cpu().numpy(), strict=True):
+                actions[i] = a
+        return actions
 
     def _model_obs(self, env: int, obs: np.ndarray) -> np.ndarray:
         """Env `env`'s observation(s) in its group's channel layout."""
@@ -338,10 +375,19 @@ class Agent:
     ) -> list[np.ndarray]:
         """One step of every env: actions (clipped to each env's bounds), one array per env.
 
-        ``prev_rewards[i]`` is the reward env ``i`` returned for the agent's previous action; it is
-        ignored where ``episode_starts[i]`` (the first observation of an episode). A NaN/inf action
-        from the model raises `AgentOutputError`: every action returned is finite and within bounds.
+        ``obs[i]`` is env ``i``'s raw observation and ``prev_rewards[i]`` the raw reward it returned for the
+        agent's previous action, ignored where ``episode_starts[i]`` (the first observation of an episode);
+        the model normalizes both (per-task observation statistics, per-task reward scale). A NaN/inf
+        action from the model raises `AgentOutputError`: every action returned is finite and within bounds.
         """
+        return self._act(obs, prev_rewards, episode_starts)
+
+    def _act(
+        self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
+        episode_starts: Sequence[bool] | np.ndarray, skip: np.ndarray | None = None, sample: bool = True,
+    ) -> list[np.ndarray]:
+        """`act`, where envs in `skip` sit the step out (`KVCache.advance`): their token goes nowhere, their
+        previous action stays, and it is what they get back (the env ignores it)."""
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
@@ -362,15 +408,18 @@ class Agent:
                 "start (episode_starts True): there is no previous action or reward to feed. To go on from stored "
                 "steps, agent.prompt(...) them first"
             )
+        sitting_out = None if skip is None or not skip.any() else torch.as_tensor(skip, device=self.device)
         prev_actions = {g: a.unsqueeze(1) for g, a in self._prev_action.items()}
         tokens = self._tokens([o[None] for o in observations], prev_actions, rewards[:, None], starts[:, None])
-        hidden = cached_backbone(self.model, tokens, self.cache)[:, -1]
+        hidden = cached_backbone(self.model, tokens, self.cache, sitting_out)[:, -1]
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, members in self._groups.items():
             mean, log_std = self.model.action_distribution(group, hidden[members.envs])
-            if log_std is not None:  # a gaussian policy acts on a draw
+            if log_std is not None and sample:  # a gaussian policy acts on a draw
                 mean = mean + log_std.exp() * torch.randn(mean.shape, generator=self._generator, device=mean.device)
             action = torch.clamp(mean, members.action_low, members.action_high)
+            if sitting_out is not None:
+                action = torch.where(sitting_out[members.envs].unsqueeze(1), self._prev_action[group], action)
             finite = torch.isfinite(action).all(dim=1)  # clamp passes NaN through
             if not finite.all():
                 env = int(members.envs[~finite][0])
@@ -383,6 +432,60 @@ class Agent:
                 actions[i] = a
         return actions
 
+    @_one_call_at_a_time
+    @torch.inference_mode()
+    def predict(
+        self, observation: np.ndarray | Sequence[float], reward: float | Sequence[float] | np.ndarray | None = None,
+        episode_start: bool | Sequence[bool] | np.ndarray | None = None, deterministic: bool = False,
+        autoreset: str | gym.vector.AutoresetMode = "same-step",
+    ) -> tuple[np.ndarray, None]:
+        """The agent as a policy, in Stable-Baselines3's shape: ``action, _ = agent.predict(obs, reward,
+        episode_start)`` after ``agent.reset(tasks)``.
+
+        One env (``reset`` with one task): `observation` ``[obs_dim]``, `reward` and `episode_start`
+        scalars, the action ``[act_dim]``. Several (a Gymnasium vector env): ``[n_envs, obs_dim]`` in, ``[n_envs,
+        act_dim]`` out. Observations and rewards are the env's raw ones; the model normalizes them.
+        `reward`: what the env returned for the previous action (ignored at an episode start).
+        `episode_start`: this observation begins an episode, i.e. the previous step ended one (SB3's
+        convention); default: True on the first call after `reset`, False after. A new episode is a
+        flag, never a `reset`: the context (what the agent has learned in context) carries over.
+
+        `autoreset`: how the env starts the next episode. ``"same-step"`` (a plain loop that resets the env
+        itself, SB3's VecEnv, Gymnasium's ``AutoresetMode.SAME_STEP``): the observation after an episode's
+        last step is the next episode's first. ``"next-step"`` (Gymnasium vector envs' default,
+        ``AutoresetMode.NEXT_STEP``): it is the finished episode's last observation, and the env's next
+        step ignores the action and returns the new episode's first; pass ``episode_start`` as the previous
+        step's ``terminated | truncated`` in both modes, and the agent sits that step out (no token for the
+        stale observation; it returns the env's previous action) and takes the next observation as a start.
+        `deterministic`: a gaussian-policy model acts on its mean rather than a draw (a deterministic model
+        always does). Returns ``(action, None)``: no recurrent state, the context lives in the agent.
+        """
+        if self.cache is None:
+            raise AgentStateError("call agent.reset(tasks) before agent.predict(...): it names each env's task")
+        mode = _autoreset_mode(autoreset)
+        n = len(self.tasks)
+        single = n == 1 and np.ndim(observation) == 1
+        observations = [np.asarray(observation)] if single else [np.asarray(o) for o in observation]
+        if len(observations) != n:
+            raise AgentInputError(f"the agent was reset with {n} env(s); got observations of shape "
+                                  f"{np.shape(observation)} (one env: [obs_dim]; several: [n_envs, obs_dim])")
+        first = self.cache.length == 0
+        default_start = np.full(n, first)
+        starts = default_start if episode_start is None else _numbers("episode_start", episode_start, bool).reshape(-1)
+        rewards = np.zeros(n) if reward is None else _numbers("reward", reward, np.float64).reshape(-1)
+        skip = None
+        if mode == "next-step" and not first:
+            # An env flagged now ended its episode on the last step: this observation is that episode's last,
+            # which the model never sees as a token. An env that sat out the last step starts one now.
+            skip = starts & ~self._awaiting_start
+            starts = self._awaiting_start.copy()
+            self._awaiting_start = skip
+        if skip is not None and skip.all():
+            actions = self._previous_actions()
+        else:
+            actions = self._act(observations, rewards, starts, skip, sample=not deterministic)
+        stacked = np.stack(actions)
+        return (stacked[0] if single else stacked), None
     @_one_call_at_a_time
     @torch.inference_mode()
     def prompt(

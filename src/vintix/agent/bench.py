@@ -84,8 +84,9 @@ def set_cache_state(cache: KVCache, length: int) -> None:
     """Put `cache` in the state it has after `length` steps (which slot holds which position)."""
     filled = min(length, cache.window)
     positions = torch.arange(length - filled, length)
-    cache.positions[positions % cache.window] = positions
+    cache.positions[:, positions % cache.window] = positions
     cache.length = length
+    cache.clocks[:] = length
 
 
 def _median_ms(step: Callable[[], object], repeats: int, before_each: Callable[[], None] = lambda: None) -> float:

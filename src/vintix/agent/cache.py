@@ -5,9 +5,13 @@ slot in place. Nothing is shifted (a shift-by-one copies the whole cache every s
 the paper's size on this CPU) and nothing is re-encoded, so a step costs the same after a million
 steps as at the step where the window first fills.
 
-Why ALiBi stays right: every slot remembers the absolute step (position) of the token it holds,
-and the attention bias is built from those positions, ``-slope * (q_pos - k_pos)``. Slot order is
-irrelevant to softmax attention, so a wrapped ring needs no reordering.
+Why ALiBi stays right: every slot remembers, per env, the position of the token it holds in that env's
+own sequence, and the attention bias is built from those positions, ``-slope * (q_pos - k_pos)``. Slot
+order is irrelevant to softmax attention, so a wrapped ring needs no reordering. An env can sit out a
+step (`advance`'s ``skip``: a vector env's next-step autoreset, whose step ignores the action): its slot of
+that step is hidden from its later tokens and its own clock does not move, so its sequence of tokens and
+their distances are what they would have been without the hole; only its window holds one token less
+until the hidden slot is overwritten.
 
 Semantics once the window is full (the paper's, and Mistral's sliding-window attention): cached
 keys and values keep the hidden states they were computed with, when their token was new and saw
@@ -25,6 +29,9 @@ import torch
 
 from vintix.memory import ensure_fits
 from vintix.model.model import KVUpdate, Vintix, alibi_bias
+
+HIDDEN = 2**62
+"""The position of a slot an env sat out: later than every query, so `alibi_bias` masks it"""
 
 
 class KVCache:
@@ -44,10 +51,13 @@ class KVCache:
         self.keys = torch.zeros(shape, device=device, dtype=dtype)
         self.values = torch.zeros(shape, device=device, dtype=dtype)
         self.window = window
-        self.positions = torch.zeros(window, dtype=torch.long, device=device)
-        """absolute step of the token in each slot (meaningful for the first `filled` slots)"""
+        self.positions = torch.zeros(batch, window, dtype=torch.long, device=device)
+        """per env, the position in its own sequence of the token in each slot (meaningful for the first
+        `filled` slots; `HIDDEN` for a slot the env sat out)"""
+        self.clocks = torch.zeros(batch, dtype=torch.long, device=device)
+        """per env, the tokens it has taken: the position of its next token"""
         self.length = 0
-        """tokens written so far: the absolute position of the next token"""
+        """steps written so far (each fills one slot of every env)"""
         self._slots = torch.zeros(0, dtype=torch.long, device=device)
 
     @classmethod
@@ -67,28 +77,39 @@ class KVCache:
         """Slots holding a token: grows to `window`, then stays there."""
         return min(self.length, self.window)
 
-    def advance(self, new_tokens: int, slopes: torch.Tensor) -> torch.Tensor:
-        """Claim slots for the next `new_tokens` tokens; return their ALiBi bias ``[H, T, filled]``.
+    def advance(self, new_tokens: int, slopes: torch.Tensor, skip: torch.Tensor | None = None) -> torch.Tensor:
+        """Claim slots for the next `new_tokens` tokens; return their ALiBi bias ``[B, H, T, filled]``.
 
         Several tokens at once (a prompt) only while they fit without wrapping: a wrapped chunk
-        would overwrite keys its own earlier tokens still attend to.
+        would overwrite keys its own earlier tokens still attend to. `skip` (bool ``[B]``, one token):
+        envs sitting this step out; their token is computed (it sees itself, so it stays finite) but
+        hidden from every later token, and their clocks stay.
         """
-        if new_tokens != 1 and self.length + new_tokens > self.window:
+        if new_tokens != 1 and (self.length + new_tokens > self.window or skip is not None):
             raise ValueError(
                 f"{new_tokens} tokens at once do not fit the {self.window}-step window after {self.length} "
-                "steps; feed them one at a time"
+                "steps (and cannot skip envs); feed them one at a time"
             )
-        query_positions = torch.arange(self.length, self.length + new_tokens, device=self.positions.device)
-        self._slots = query_positions % self.window
-        self.positions[self._slots] = query_positions
+        steps = torch.arange(new_tokens, device=self.positions.device)
+        self._slots = (self.length + steps) % self.window
+        query_positions = self.clocks.unsqueeze(1) + steps  # [B, T]
+        self.positions[:, self._slots] = query_positions
         self.length += new_tokens
-        return alibi_bias(query_positions, self.positions[: self.filled], slopes)
+        bias = alibi_bias(query_positions, self.positions[:, : self.filled], slopes)
+        if skip is None:
+            self.clocks += new_tokens
+        else:
+            self.clocks += (~skip).long()
+            self.positions[skip.nonzero().squeeze(1).unsqueeze(1), self._slots] = HIDDEN
+        return bias
 
     def keep(self, envs: torch.Tensor) -> None:
         """Keep only the batch rows `envs` (indices, in that order). The rows share one clock, so
         positions stay as they are; this copies the kept rows once, a cost paid per call, not per step."""
         self.keys = self.keys[:, envs]
         self.values = self.values[:, envs]
+        self.positions = self.positions[envs]
+        self.clocks = self.clocks[envs]
 
     def layer(self, index: int) -> KVUpdate:
         """Layer `index`'s hook: store the new k, v ``[B, H, T, head_dim]``, return the filled window."""
@@ -102,9 +123,11 @@ class KVCache:
         return update
 
 
-def cached_backbone(model: Vintix, tokens: torch.Tensor, cache: KVCache) -> torch.Tensor:
-    """The backbone over the new tokens ``[B, T, d_model]`` only, attending to the cached window."""
-    bias = cache.advance(tokens.shape[1], model.alibi_slopes).to(tokens.dtype)
+def cached_backbone(model: Vintix, tokens: torch.Tensor, cache: KVCache, skip: torch.Tensor | None = None
+                    ) -> torch.Tensor:
+    """The backbone over the new tokens ``[B, T, d_model]`` only, attending to the cached window; `skip`:
+    see `KVCache.advance`."""
+    bias = cache.advance(tokens.shape[1], model.alibi_slopes, skip).to(tokens.dtype)
     x = tokens
     for i, block in enumerate(model.blocks):
         x = block(x, bias, kv_cache=cache.layer(i))

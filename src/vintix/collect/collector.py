@@ -71,6 +71,10 @@ class CollectionPlan:
     behaviour: str = "expert"
     """How the demonstrator plays: 'expert' (sees the hidden goal), or 'posterior-sampling' / 'probing'
     (infers it from the rewards it earns; Meta-World and toy tasks; `vintix.demonstrators.posterior`)."""
+    demonstrator: str | None = None
+    """A demonstrator from outside the package: ``module:callable`` (called with the task name, returns a
+    Demonstrator) or ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only);
+    None: the package's own (`vintix.demonstrators.external_demonstrator`)."""
 
     def __post_init__(self) -> None:
         check_field_types(self, CollectionError)
@@ -95,6 +99,8 @@ class CollectionPlan:
         env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
         # Only a behaviour other than the expert's is recorded, so expert histories keep their bytes.
         behaviour = {} if self.behaviour == "expert" else {"behaviour": self.behaviour}
+        if self.demonstrator is not None:
+            behaviour["demonstrator"] = self.demonstrator
         return {"task": get_task(self.task).name, "env_seed": env_seed, "collection_seed": self.seed,
                 "steps": self.steps, **self.schedule.recorded(), **behaviour}
 
@@ -182,7 +188,7 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     """Collect histories `indices` of `plan.task` together, writing one file each (after each one's
     pilot run, if the schedule has one)."""
     spec = get_task(plan.task)
-    demonstrator = demonstrator or load_demonstrator(spec.name, behaviour=plan.behaviour)
+    demonstrator = demonstrator or load_demonstrator(spec.name, behaviour=plan.behaviour, source=plan.demonstrator)
     seeds = [history_seeds(spec.name, i, plan.seed) for i in indices]
     envs = [make_env(spec.name, seed=s.env_seed) for s in seeds]
     label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
@@ -338,7 +344,7 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
         cluster.connect(ray)
     if demonstrator is None:
         for plan in plans:
-            load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour)
+            load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour, source=plan.demonstrator)
     check_output_kind(root, "dataset")
     with folder_lock(root, "vintix collect"):
         return _collect(plans, root, workers, demonstrator, ray)

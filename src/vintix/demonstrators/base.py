@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import importlib
+import os
+import stat
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol, cast
 
 import gymnasium as gym
 import numpy as np
@@ -27,12 +30,23 @@ rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn 
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal."""
 
 
-def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert") -> Demonstrator:
+def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
+                      source: str | None = None) -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
     tasks that have none. `behaviour="posterior-sampling"` or `"probing"` wraps a scripted expert of a
-    hidden-goal task (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards."""
+    hidden-goal task (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards.
+    `source`: a demonstrator from outside the package instead (`external_demonstrator`)."""
     spec = get_task(task)
+    if source is not None:
+        if behaviour != "expert" or weights is not None:
+            raise VintixError(f"{spec.name!r}: a demonstrator named by the recipe ({source!r}) plays as it is: "
+                              "leave out behaviour and weights")
+        return external_demonstrator(spec.name, source)
+    if spec.domain == "custom":
+        raise VintixError(f"task {spec.name!r} is your own, and the package has no demonstrator for it: name one in "
+                          "the recipe, demonstrator: module:callable (your Demonstrator) or sb3:ALGO:PATH.zip "
+                          "(a trained Stable-Baselines3 or sbx:ALGO:PATH.zip model)")
     if behaviour not in BEHAVIOURS:
         raise VintixError(f"unknown demonstrator behaviour {behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
     if behaviour != "expert":
@@ -60,3 +74,59 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     from vintix.demonstrators.trained import TrainedDemonstrator
 
     return TrainedDemonstrator(spec, weights)
+
+
+class ModelFileDemonstrator:
+    """A trained Stable-Baselines3 (or sbx) model as a demonstrator: its deterministic action."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        return np.asarray(self.model.predict(observations, deterministic=True)[0])
+
+
+_MODEL_LIBRARIES = {"sb3": "stable_baselines3", "sbx": "sbx"}
+
+
+def external_demonstrator(task: str, source: str) -> Demonstrator:
+    """A demonstrator from outside the package, as a recipe names it (``demonstrator:``):
+
+    - ``module:callable``: called with the task name, returns a `Demonstrator` (a class whose ``__init__``
+      takes the task name will do);
+    - ``sb3:ALGO:PATH`` or ``sbx:ALGO:PATH``: a model saved by Stable-Baselines3 or sbx (``model.save``),
+      loaded by that library's ``ALGO.load``. Such a file is unpickled, which runs any code in it: vintix
+      loads it only when it is yours and nobody else can write it, and you must trust where it came from.
+    """
+    library, _, rest = source.partition(":")
+    if library in _MODEL_LIBRARIES:
+        algorithm, _, path = rest.partition(":")
+        if not algorithm or not path:
+            raise VintixError(f"demonstrator {source!r}: a model file reads {library}:ALGO:PATH, e.g. {library}:SAC:"
+                              "runs/pendulum/model.zip")
+        refuse_untrusted(Path(path))
+        module = importlib.import_module(_MODEL_LIBRARIES[library])
+        if not hasattr(module, algorithm):
+            raise VintixError(f"demonstrator {source!r}: {_MODEL_LIBRARIES[library]} has no algorithm {algorithm!r}")
+        model = getattr(module, algorithm).load(path, device="cpu")
+        return ModelFileDemonstrator(model)
+    from vintix.tasks.custom import load_callable
+
+    demonstrator = load_callable(source, f"task {task!r}: demonstrator")(task)
+    if not callable(getattr(demonstrator, "act", None)):
+        raise VintixError(f"demonstrator {source!r} returned {type(demonstrator).__name__}, which has no "
+                          "act(observations, envs) method (the Demonstrator protocol)")
+    return cast(Demonstrator, demonstrator)
+
+
+def refuse_untrusted(path: Path) -> None:
+    """Raise unless `path` exists, is owned by this user and is writable by nobody else: a file that is
+    unpickled on load runs the code of whoever could write it."""
+    if not path.exists():
+        raise VintixError(f"{path}: no such file")
+    info = path.stat()
+    foreign = hasattr(os, "getuid") and info.st_uid != os.getuid()
+    if foreign or info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        who = f"owned by user id {info.st_uid}" if foreign else "writable by other users"
+        raise VintixError(f"{path} is {who}; it is unpickled on load, which runs any code in it, so vintix loads it "
+                          f"only when only you can write it. If you trust it, copy it and `chmod go-w` the copy")

@@ -28,7 +28,6 @@ folder and files belong to the user and nobody else can write them (`refuse_untr
 from __future__ import annotations
 
 import json
-import os
 import random
 import shutil
 import signal
@@ -55,6 +54,7 @@ from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from vintix.atomic import atomic_write_text
+from vintix.demonstrators.base import refuse_untrusted
 from vintix.demonstrators.scores import episode_returns
 from vintix.demonstrators.trained import (
     ALGORITHMS,
@@ -370,15 +370,11 @@ def refuse_untrusted_state(state: Path) -> None:
     """Raise unless `state` and its pickled files are owned by this user and writable by nobody else:
     another user who could write them (a cache on shared storage) could make loading run their code."""
     for path in [state, *(state / name for name in PICKLED_FILES if (state / name).exists())]:
-        info = path.stat()
-        foreign = hasattr(os, "getuid") and info.st_uid != os.getuid()
-        if foreign or info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-            who = f"owned by user id {info.st_uid}" if foreign else "writable by other users"
-            raise VintixError(
-                f"{path} is {who}; a saved training state is unpickled on load, which runs any code in it, so "
-                f"vintix loads one only when only you can write it. If you wrote it, `chmod -R go-w {state}`; "
-                f"otherwise delete {state.parent} and train from the start"
-            )
+        try:
+            refuse_untrusted(path)
+        except VintixError as error:
+            raise VintixError(f"{error}. A saved training state: `chmod -R go-w {state}` if you wrote it, otherwise "
+                              f"delete {state.parent} and train from the start") from None
 
 
 def evaluate_unfinished_run(run: UnfinishedRun, episodes: int, seed: int = 0) -> tuple[str, np.ndarray]:

@@ -38,6 +38,7 @@ from vintix.evaluate.summary import best_k_plateau
 from vintix.fields import check_field_types
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, action_box, get_task, make_env, resolve_tasks
+from vintix.tasks.custom import custom_specs
 from vintix.tasks.scores import Reference, missing_reference_note, reference
 from vintix.train.config import SELECT_METRICS, ConfigError, TrainConfig
 from vintix.train.trainer import Scorer, Selection
@@ -296,7 +297,8 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
                  for (spec, seed), p in zip(batch, prompts, strict=True)]
     envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
     try:
-        agent.reset([spec.name for spec, _ in batch], [action_box(env.action_space) for env in envs])
+        agent.reset([spec.name for spec, _ in batch], [action_box(env.action_space) for env in envs],
+                    discard_context=True)  # each batch is a new run
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
@@ -379,7 +381,7 @@ def evaluate(
                            for table, by_task in refs.items()},
             "seconds": round(time.time() - started, 1),
             "torch": torch.__version__,
-        })
+        } | ({"custom_tasks": custom} if (custom := custom_specs([s.name for s in specs])) else {}))
     return rows, notes + missing
 
 

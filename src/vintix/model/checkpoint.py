@@ -23,6 +23,7 @@ from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
+from vintix.tasks.custom import custom_specs, register_specs
 from vintix.tasks.layouts import ObsLayout
 
 WEIGHTS_FILE = "model.safetensors"
@@ -43,13 +44,16 @@ def metadata_for(config: ModelConfig, groups: Sequence[GroupSpec], norms: Sequen
                  extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """The JSON half of a checkpoint of a model with this config, groups and normalization (`build_model`
     builds it before any weights exist)."""
-    return {
+    metadata = {
         "format_version": FORMAT_VERSION,
         "config": dataclasses.asdict(config),
         "groups": [dataclasses.asdict(g) for g in groups],
         "task_norms": [task_norm_json(t) for t in norms],
         "extra": extra or {},
     }
+    # Tasks registered from outside the package travel with the model, so loading it needs no registration.
+    custom = custom_specs([t.task for t in norms])
+    return metadata | ({"custom_tasks": custom} if custom else {})
 
 
 def task_norm_json(norm: TaskNorm) -> dict[str, Any]:
@@ -134,6 +138,7 @@ def load_pretrained(directory: str | os.PathLike[str], device: str | torch.devic
     directory = Path(directory)
     device = torch_device(device)  # before reading gigabytes of weights
     meta = read_metadata(directory)
+    register_specs(meta.get("custom_tasks", {}), str(directory / CONFIG_FILE))
     try:
         model = build_model(meta)
     except CheckpointError as error:  # build_model cannot name the file it was read from

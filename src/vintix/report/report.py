@@ -32,6 +32,7 @@ from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci
 from vintix.tasks import get_task
+from vintix.tasks.custom import register_specs
 from vintix.tasks.scores import (
     MODEL_CARD_DOMAIN_IQM,
     Reference,
@@ -84,6 +85,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
         raise VintixError(f"{run_file}: not valid JSON ({error}); {rewrite}") from error
     if not isinstance(run, dict):
         raise VintixError(f"{run_file}: expected a JSON object; {rewrite}")
+    register_specs(run.get("custom_tasks", {}), str(run_file))  # your own tasks travel with their results
     # variant -> run (seed, prompt) -> shot -> (normalized score, success flag or NaN)
     runs: dict[str, dict[tuple[int, str], dict[int, tuple[float, float]]]] = defaultdict(lambda: defaultdict(dict))
     domains, tasks, refs, missing = {}, {}, {}, []

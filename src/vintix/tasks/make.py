@@ -15,7 +15,7 @@ from typing import Any
 import gymnasium as gym
 
 from vintix.errors import MissingDependencyError, UnsupportedOptionError
-from vintix.tasks.registry import TaskSpec, get_task, list_tasks
+from vintix.tasks.registry import TaskSpec, builtin_tasks, get_task
 
 NAMESPACE = "vintix"
 
@@ -26,8 +26,10 @@ def gymnasium_id(spec: TaskSpec) -> str:
 
 
 def register_gymnasium_envs() -> None:
-    """Register the Meta-World and Industrial Benchmark tasks with gymnasium (idempotent)."""
-    for spec in list_tasks(domain="metaworld"):
+    """Register the Meta-World and Industrial Benchmark tasks with gymnasium (idempotent). Runs when
+    `vintix.tasks` is imported, so it reads the package's own tasks only: task plug-ins, which may import
+    vintix themselves, load at the first lookup."""
+    for spec in builtin_tasks("metaworld"):
         if gymnasium_id(spec) not in gym.registry:
             gym.register(
                 gymnasium_id(spec),
@@ -35,7 +37,7 @@ def register_gymnasium_envs() -> None:
                 kwargs={"task_name": spec.name},
                 max_episode_steps=spec.episode_length,
             )
-    for spec in list_tasks(domain="industrial_benchmark"):
+    for spec in builtin_tasks("industrial_benchmark"):
         if gymnasium_id(spec) not in gym.registry:
             gym.register(
                 gymnasium_id(spec),
@@ -106,18 +108,26 @@ def _make_toy(spec: TaskSpec, seed: int | None) -> gym.Env:
     return gym.wrappers.TimeLimit(PointGoalEnv(seed), spec.episode_length)
 
 
+def _make_custom(spec: TaskSpec, seed: int | None, **env_kwargs: Any) -> gym.Env:
+    from vintix.tasks.custom import make_custom_env
+
+    return make_custom_env(spec, **env_kwargs)
+
+
 _FACTORIES: dict[str, Callable[..., gym.Env]] = {
     "mujoco": _make_mujoco,
     "metaworld": _make_metaworld,
     "industrial_benchmark": _make_industrial_benchmark,
     "bidexhands": _make_bidexhands,
     "toy": _make_toy,
+    "custom": _make_custom,
 }
 
 
 def domain_options(domain: str) -> list[str]:
-    """The keyword options `make_env` accepts for tasks of `domain`."""
-    return list(inspect.signature(_FACTORIES[domain]).parameters)[2:]
+    """The keyword options `make_env` accepts for tasks of `domain` (custom tasks: their env's own)."""
+    return [name for name, p in inspect.signature(_FACTORIES[domain]).parameters.items()
+            if p.kind is not inspect.Parameter.VAR_KEYWORD][2:]
 
 
 def make_env(task: str, seed: int | None = None, **options: Any) -> gym.Env:
@@ -130,7 +140,7 @@ def make_env(task: str, seed: int | None = None, **options: Any) -> gym.Env:
     spec = get_task(task)
     accepted = domain_options(spec.domain)
     unknown = sorted(set(options) - set(accepted))
-    if unknown:
+    if unknown and spec.domain != "custom":  # a custom env's factory or gymnasium id takes its own options
         where = [d for d in _FACTORIES if set(unknown) <= set(domain_options(d))]
         hint = f" It exists for {', '.join(where)} tasks." if where else ""
         raise UnsupportedOptionError(

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -23,9 +24,10 @@ from typing import Literal
 
 from vintix.errors import UnknownTaskError
 
-Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy"]
+Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "custom"]
 Split = Literal["train", "test"]
-DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy")
+DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "custom")
+"""'custom': tasks registered from outside the package (`register_task`)"""
 
 PAPER_PROVENANCE = (
     "paper: Vintix (ICML 2025) appendix 'Task-Level Performance'; MuJoCo -v4 names with v5 dims, "
@@ -65,6 +67,14 @@ class TaskSpec:
     """Steps per learning history in the paper's dataset."""
     paper_histories: int
     """Learning histories per task in the paper's dataset."""
+    env_id: str | None = None
+    """custom tasks: the Gymnasium id their env is made with (``module:EnvId`` imports the module first)"""
+    env_factory: str | None = None
+    """custom tasks: ``module:callable`` returning their env (instead of `env_id`)"""
+    reference_random: float | None = None
+    """custom tasks: the random policy's mean episode return, for normalized scores (None: no scores)"""
+    reference_expert: float | None = None
+    """custom tasks: the demonstrator's mean episode return, for normalized scores"""
 
     @property
     def episode_limit(self) -> int | None:
@@ -109,19 +119,61 @@ def _toy_tasks() -> list[TaskSpec]:
 
 
 @cache
-def _tasks() -> dict[str, TaskSpec]:
+def _builtin_tasks() -> dict[str, TaskSpec]:
     table = resources.files("vintix.tasks").joinpath("paper_tasks.csv").read_text()
     paper = list(map(_spec_from_row, csv.DictReader(table.splitlines())))
     return {spec.name: spec for spec in paper + _toy_tasks()}
 
 
+def builtin_tasks(domain: str) -> list[TaskSpec]:
+    """The package's own tasks of `domain`, without loading task plug-ins."""
+    return [spec for spec in _builtin_tasks().values() if spec.domain == domain]
+
+
+_custom: dict[str, TaskSpec] = {}
+"""Tasks registered from outside the package, by name (`register_task`)"""
+
+
+_plugins_loaded = False
+
+
+def load_task_plugins() -> None:
+    """Register the tasks of ``VINTIX_TASKS`` files and ``vintix.tasks`` entry points, once per process
+    (`vintix.tasks.custom`)."""
+    global _plugins_loaded
+    if _plugins_loaded:
+        return
+    _plugins_loaded = True  # before loading: the plug-ins' own registrations look tasks up
+    from vintix.tasks.custom import load_plugins
+
+    try:
+        load_plugins()
+    except Exception:
+        _plugins_loaded = False  # the error is the user's to fix; the next lookup tries again
+        raise
+
+
+def _tasks() -> dict[str, TaskSpec]:
+    load_task_plugins()
+    return _builtin_tasks() | _custom if _custom else _builtin_tasks()
+
+
 @cache
-def _names_and_aliases() -> dict[str, str]:
+def _builtin_names() -> dict[str, str]:
+    return _lookup(_builtin_tasks().values())
+
+
+def _lookup(specs: Iterable[TaskSpec]) -> dict[str, str]:
     lookup = {}
-    for spec in _tasks().values():
+    for spec in specs:
         lookup[spec.name] = spec.name
         lookup.update({alias: spec.name for alias in spec.aliases})
     return lookup
+
+
+def _names_and_aliases() -> dict[str, str]:
+    load_task_plugins()
+    return _builtin_names() | _lookup(_custom.values()) if _custom else _builtin_names()
 
 
 def get_task(name: str) -> TaskSpec:

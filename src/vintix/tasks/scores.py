@@ -74,6 +74,10 @@ def reference(task: str, table: str = "paper") -> Reference | None:
     """`task`'s reference in `table` ('paper' or 'ours'); None when the table has no score for it."""
     check_table(table)
     spec = get_task(task)
+    if spec.domain == "custom":  # its own references, whichever table: no table knows it
+        if spec.reference_random is None or spec.reference_expert is None:
+            return None
+        return Reference(spec.reference_random, spec.reference_expert, "registered with the task")
     if table == "paper":
         if spec.paper_random is None or spec.paper_expert is None:
             return None  # not a task of the paper

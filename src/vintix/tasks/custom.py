@@ -1,0 +1,209 @@
+"""Your own tasks: any Gymnasium env with a Box action space, registered from outside the package.
+
+Three ways, all of which every vintix process (every CLI command, every Ray worker) sees:
+
+- Python: ``vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1,
+  episode_length=200)``, in your own code before you call vintix;
+- a tasks file, YAML, named by the environment variable ``VINTIX_TASKS`` (several: separated by ``:``) or by
+  ``vintix --tasks-file FILE <command>``::
+
+      tasks:
+        Pendulum-v1:
+          env_id: Pendulum-v1        # or env_factory: my_package.envs:make_pendulum
+          obs_dim: 3
+          act_dim: 1
+          episode_length: 200
+          group: pendulum            # tasks of one group share encoders and a head (default: the name)
+          reward_scale: 0.1          # rewards are multiplied by it before the model sees them
+          reference_random: -1200    # mean returns that normalize scores (optional)
+          reference_expert: -150
+
+- a plug-in package: an entry point in the group ``vintix.tasks`` naming a function that registers its
+  tasks (``[project.entry-points."vintix.tasks"] mine = "my_package.vintix_tasks:register"``).
+
+A checkpoint keeps the specs of the custom tasks it was trained on, and loading it registers them, so
+evaluating it needs only the env to be importable. A spec that contradicts its env (dims, an unbounded or
+non-Box action space) is an error when the env is made.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import yaml
+
+from vintix.errors import VintixError
+from vintix.tasks import registry
+from vintix.tasks.registry import TaskSpec
+
+ENV_VARIABLE = "VINTIX_TASKS"
+ENTRY_POINT_GROUP = "vintix.tasks"
+SPEC_FIELDS = ("env_id", "env_factory", "obs_dim", "act_dim", "episode_length", "group", "reward_scale",
+               "reference_random", "reference_expert", "split", "aliases")
+"""What a tasks file (or `register_task`) may say about a task"""
+
+
+class TaskSpecError(VintixError, ValueError):
+    """A custom task whose spec is incomplete, contradicts itself or its env, or clashes with another task."""
+
+
+def register_task(
+    name: str, *, obs_dim: int, act_dim: int, episode_length: int, env_id: str | None = None,
+    env_factory: str | None = None, group: str | None = None, reward_scale: float = 1.0,
+    reference_random: float | None = None, reference_expert: float | None = None, split: str = "train",
+    aliases: tuple[str, ...] | list[str] = (),
+) -> TaskSpec:
+    """Add a task of your own to the registry (see this module's docstring); returns its spec. Registering
+    the same spec again is a no-op; another spec under a taken name or alias is a TaskSpecError."""
+    if (env_id is None) == (env_factory is None):
+        raise TaskSpecError(f"task {name!r}: give one of env_id (a Gymnasium id) and env_factory (module:callable)")
+    if env_factory is not None and ":" not in env_factory:
+        raise TaskSpecError(f"task {name!r}: env_factory must read module:callable, got {env_factory!r}")
+    sizes = {"obs_dim": obs_dim, "act_dim": act_dim, "episode_length": episode_length}
+    bad = [f"{k}={v!r}" for k, v in sizes.items() if not isinstance(v, int) or isinstance(v, bool) or v < 1]
+    if bad or split not in ("train", "test") or not reward_scale > 0:
+        got = ", ".join(bad) or f"split={split!r}, reward_scale={reward_scale}"
+        raise TaskSpecError(f"task {name!r}: obs_dim, act_dim and episode_length must be integers >= 1, split train "
+                            f"or test, reward_scale > 0; got {got}")
+    if (reference_random is None) != (reference_expert is None) or (
+            reference_random is not None and reference_expert is not None and not reference_expert > reference_random):
+        raise TaskSpecError(f"task {name!r}: give both reference_random and reference_expert (expert above random) "
+                            f"or neither; got {reference_random} and {reference_expert}")
+    spec = TaskSpec(
+        name=name, domain="custom", group=group or name, obs_dim=obs_dim, act_dim=act_dim,
+        episode_length=episode_length, reward_scale=float(reward_scale), split=split,  # type: ignore[arg-type]
+        aliases=tuple(aliases), paper_random=None, paper_expert=None, paper_vintix_normalized=None,
+        paper_history_length=0, paper_histories=0, env_id=env_id, env_factory=env_factory,
+        reference_random=None if reference_random is None else float(reference_random),
+        reference_expert=None if reference_expert is None else float(reference_expert),
+    )
+    taken = registry._names_and_aliases()
+    for label in (name, *spec.aliases):
+        owner = taken.get(label)
+        if owner is not None and registry._tasks()[owner] != spec:
+            raise TaskSpecError(f"task {name!r}: the name {label!r} is already task {owner!r}; choose another")
+    registry._custom[name] = spec
+    return spec
+
+
+def spec_to_json(spec: TaskSpec) -> dict[str, Any]:
+    """A custom task's spec as a tasks-file entry (what a checkpoint keeps)."""
+    data = {field: getattr(spec, field) for field in SPEC_FIELDS}
+    data["aliases"] = list(spec.aliases)
+    return data
+
+
+def register_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> TaskSpec:
+    """`register_task` from a tasks file's (or a checkpoint's) entry; unknown fields are an error."""
+    if not isinstance(fields, Mapping):
+        raise TaskSpecError(f"{where}: task {name!r} must be a mapping of {', '.join(SPEC_FIELDS)}")
+    unknown = sorted(set(fields) - set(SPEC_FIELDS))
+    if unknown:
+        raise TaskSpecError(f"{where}: task {name!r} has unknown field(s) {unknown}; known: {', '.join(SPEC_FIELDS)}")
+    try:
+        arguments: dict[str, Any] = {k: (tuple(v) if k == "aliases" else v) for k, v in fields.items()}
+        return register_task(str(name), **arguments)
+    except TypeError as error:  # a missing required field
+        raise TaskSpecError(f"{where}: task {name!r}: {error}") from error
+
+
+def register_tasks_file(path: str | os.PathLike[str]) -> list[TaskSpec]:
+    """Register every task of a YAML tasks file (this module's docstring shows one)."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise TaskSpecError(f"tasks file {path}: {error.strerror or error}; check the path ({ENV_VARIABLE} or "
+                            "--tasks-file)") from error
+    except yaml.YAMLError as error:
+        raise TaskSpecError(f"tasks file {path}: not valid YAML ({error})") from error
+    if not isinstance(data, dict) or not isinstance(data.get("tasks"), dict) or not data["tasks"]:
+        raise TaskSpecError(f"tasks file {path}: needs a non-empty 'tasks:' mapping of task name -> fields")
+    return [register_from_mapping(name, fields, f"tasks file {path}") for name, fields in data["tasks"].items()]
+
+
+def load_plugins() -> None:
+    """Register the tasks of ``VINTIX_TASKS`` files and of ``vintix.tasks`` entry points."""
+    from importlib.metadata import entry_points
+
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            register = entry.load()
+            register()
+        except Exception as error:  # a broken plug-in is named, not a traceback from deep inside the registry
+            raise TaskSpecError(f"the {ENTRY_POINT_GROUP} entry point {entry.name!r} ({entry.value}) failed: "
+                                f"{error!r}; fix or uninstall the package that declares it") from error
+    for file in filter(None, os.environ.get(ENV_VARIABLE, "").split(os.pathsep)):
+        register_tasks_file(file)
+
+
+def load_callable(reference: str, what: str) -> Callable[..., Any]:
+    """The object ``module:attribute`` names (imported), which must be callable; `what` names it in errors."""
+    module, _, attribute = reference.partition(":")
+    try:
+        target = importlib.import_module(module)
+        for part in attribute.split("."):
+            target = getattr(target, part)
+    except (ImportError, AttributeError) as error:
+        raise TaskSpecError(f"{what} {reference!r} cannot be loaded ({error}); is its module importable here "
+                            "(installed, or on PYTHONPATH)?") from error
+    if not callable(target):
+        raise TaskSpecError(f"{what} {reference!r} is not callable")
+    return target
+
+
+def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
+    """`spec`'s env, capped at its episode length, checked against its dims and action bounds."""
+    env: gym.Env
+    if spec.env_factory is not None:
+        env = gym.wrappers.TimeLimit(load_callable(spec.env_factory, f"task {spec.name!r}: env_factory")(**kwargs),
+                                     spec.episode_length)
+    else:
+        assert spec.env_id is not None  # register_task requires one of the two
+        try:
+            env = gym.make(spec.env_id, max_episode_steps=spec.episode_length, **kwargs)
+        except gym.error.Error as error:
+            raise TaskSpecError(f"task {spec.name!r}: gymnasium cannot make env {spec.env_id!r} ({error})") from error
+    check_env_fits(spec, env)
+    return env
+
+
+def check_env_fits(spec: TaskSpec, env: gym.Env) -> None:
+    """A TaskSpecError (the env closed) where `env`'s spaces contradict `spec`."""
+    problems = []
+    obs_shape = getattr(env.observation_space, "shape", None)
+    if obs_shape != (spec.obs_dim,):
+        problems.append(f"observations of shape {obs_shape}, the spec says obs_dim {spec.obs_dim}")
+    space = env.action_space
+    if not isinstance(space, gym.spaces.Box) or space.shape != (spec.act_dim,):
+        problems.append(f"action space {space}, the spec says a Box of act_dim {spec.act_dim}")
+    elif not (space.is_bounded("both")):
+        problems.append(f"action space {space} is unbounded; vintix's noise draws uniform actions within bounds")
+    if problems:
+        env.close()
+        raise TaskSpecError(f"task {spec.name!r}: its env has {'; '.join(problems)}; fix the spec or the env")
+
+
+def custom_specs(tasks: list[str]) -> dict[str, dict[str, Any]]:
+    """The tasks-file entries of those of `tasks` that are custom (what a checkpoint keeps)."""
+    specs = {}
+    for name in tasks:
+        spec = registry.find_task(name)
+        if spec is not None and spec.domain == "custom":
+            specs[spec.name] = spec_to_json(spec)
+    return specs
+
+
+def register_specs(specs: Mapping[str, Any], where: str) -> None:
+    """Register a checkpoint's custom task specs that this process does not know yet."""
+    for name, fields in specs.items():
+        register_from_mapping(name, fields, where)
+
+
+__all__ = ["TaskSpecError", "check_env_fits", "custom_specs", "load_callable", "make_custom_env", "register_specs",
+           "register_task", "register_tasks_file"]

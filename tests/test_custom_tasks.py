@@ -1,0 +1,182 @@
+"""Your own environment: a task registered from outside the package (Python, a tasks file, an entry point),
+a demonstrator named by a recipe, and the whole pipeline through the CLI on Gymnasium's Pendulum-v1."""
+
+import csv
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import vintix
+from vintix.demonstrators.base import external_demonstrator
+from vintix.errors import VintixError
+from vintix.tasks import get_task, make_env, registry, resolve_tasks
+from vintix.tasks.custom import TaskSpecError, register_tasks_file
+
+PLUGIN = '''
+"""A task of one's own: Gymnasium's Pendulum-v1 with a hand-written swing-up controller."""
+import numpy as np
+
+
+class SwingUp:
+    """Energy pumping far from upright, a PD balance near it (Pendulum-v1: th'' = 15 sin th + 3 u)."""
+
+    def __init__(self, task):
+        self.task = task
+
+    def act(self, observations, envs):
+        cos, sin, velocity = observations[:, 0], observations[:, 1], observations[:, 2]
+        energy = 0.5 * velocity**2 + 15.0 * cos  # 15 at rest upright
+        pump = np.clip(0.5 * (15.0 - energy) * np.sign(velocity + 1e-6), -2.0, 2.0)
+        balance = np.clip(-(10.0 * np.arctan2(sin, cos) + 2.0 * velocity), -2.0, 2.0)
+        return np.where(cos > 0.85, balance, pump)[:, None].astype(np.float32)
+
+
+def register():
+    import vintix
+    vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=200,
+                         group="pendulum", reward_scale=0.1)
+'''
+TASKS_FILE = """
+tasks:
+  Pendulum-v1:
+    env_id: Pendulum-v1
+    obs_dim: 3
+    act_dim: 1
+    episode_length: 200
+    group: pendulum
+    reward_scale: 0.1
+    reference_random: -1149
+    reference_expert: -132
+"""
+RECIPE = """
+defaults: {histories: 4, steps: 2000, envs_per_batch: 4}
+tasks:
+  Pendulum-v1: {demonstrator: "pendulum_plugin:SwingUp"}
+"""
+
+
+@pytest.fixture
+def no_custom_tasks():
+    """Tests that register tasks in this process leave the registry as they found it."""
+    yield
+    registry._custom.clear()
+
+
+@pytest.fixture
+def plugin(tmp_path):
+    (tmp_path / "pendulum_plugin.py").write_text(PLUGIN)
+    (tmp_path / "tasks.yaml").write_text(TASKS_FILE)
+    (tmp_path / "recipe.yaml").write_text(RECIPE)
+    return tmp_path
+
+
+def vintix_cli(*args, cwd, tasks_file=None):
+    env = {**os.environ, "PYTHONPATH": str(cwd)}
+    env.pop("VINTIX_TASKS", None)
+    if tasks_file:
+        env["VINTIX_TASKS"] = str(tasks_file)
+    result = subprocess.run([sys.executable, "-m", "vintix", *args], cwd=cwd, env=env, capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    return result.stdout
+
+
+def test_a_task_registered_from_python_makes_its_env_and_joins_the_custom_domain(no_custom_tasks):
+    spec = vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=50)
+    assert get_task("Pendulum-v1") == spec and spec.group == "Pendulum-v1" and spec.domain == "custom"
+    assert [t.name for t in resolve_tasks(["custom"])] == ["Pendulum-v1"]
+    env = make_env("Pendulum-v1", seed=3)
+    first, _ = env.reset()
+    steps = 0
+    while not any(env.step(env.action_space.sample())[2:4]):
+        steps += 1
+    assert steps + 1 == 50  # the spec's episode length, not gymnasium's 200
+    again, _ = make_env("Pendulum-v1", seed=3).reset()
+    np.testing.assert_array_equal(first, again)
+    vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=50)  # same: no-op
+
+
+def test_a_spec_that_contradicts_its_env_or_another_task_is_refused(no_custom_tasks):
+    vintix.register_task("bad-pendulum", env_id="Pendulum-v1", obs_dim=4, act_dim=1, episode_length=200)
+    with pytest.raises(TaskSpecError, match=r"observations of shape \(3,\), the spec says obs_dim 4"):
+        make_env("bad-pendulum")
+    with pytest.raises(TaskSpecError, match="already task 'reach-v3'"):
+        vintix.register_task("reach-v3", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=200)
+    with pytest.raises(TaskSpecError, match="one of env_id"):
+        vintix.register_task("x", obs_dim=3, act_dim=1, episode_length=200)
+    with pytest.raises(TaskSpecError, match=r"action space Discrete\(2\), the spec says a Box"):
+        vintix.register_task("cartpole", env_id="CartPole-v1", obs_dim=4, act_dim=1, episode_length=200)
+        make_env("cartpole")
+
+
+def test_tasks_file_errors_name_the_file_and_the_field(tmp_path, no_custom_tasks):
+    path = tmp_path / "tasks.yaml"
+    path.write_text("tasks:\n  p:\n    env_id: Pendulum-v1\n    obs_dims: 3\n")
+    with pytest.raises(TaskSpecError, match=r"tasks.yaml: task 'p' has unknown field\(s\) \['obs_dims'\]"):
+        register_tasks_file(path)
+    path.write_text("tasks:\n  p:\n    env_id: Pendulum-v1\n    obs_dim: 3\n")
+    with pytest.raises(TaskSpecError, match="act_dim"):
+        register_tasks_file(path)
+    with pytest.raises(TaskSpecError, match="no-such.yaml"):
+        register_tasks_file(tmp_path / "no-such.yaml")
+
+
+def test_an_entry_point_registers_its_tasks_in_every_process(plugin):
+    dist = plugin / "vintix_pendulum-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: vintix-pendulum\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[vintix.tasks]\npendulum = pendulum_plugin:register\n")
+    output = vintix_cli("tasks", "--domain", "custom", cwd=plugin)
+    assert "Pendulum-v1" in output and "1 tasks" in output
+
+
+def test_a_recipe_demonstrator_and_a_model_file_demonstrator(plugin, no_custom_tasks):
+    from stable_baselines3 import SAC
+
+    register_tasks_file(plugin / "tasks.yaml")
+    sys.path.insert(0, str(plugin))
+    try:
+        swing_up = external_demonstrator("Pendulum-v1", "pendulum_plugin:SwingUp")
+    finally:
+        sys.path.remove(str(plugin))
+    assert swing_up.act(np.array([[1.0, 0.0, 0.0]]), []).shape == (1, 1)
+    with pytest.raises(VintixError, match="is not callable|cannot be loaded"):
+        external_demonstrator("Pendulum-v1", "numpy:no_such_thing")
+    SAC("MlpPolicy", make_env("Pendulum-v1"), policy_kwargs={"net_arch": [8]}).save(plugin / "sac.zip")
+    os.chmod(plugin / "sac.zip", 0o644)
+    model = external_demonstrator("Pendulum-v1", f"sb3:SAC:{plugin / 'sac.zip'}")
+    assert model.act(np.zeros((3, 3), np.float32), []).shape == (3, 1)
+    os.chmod(plugin / "sac.zip", 0o666)
+    with pytest.raises(VintixError, match="writable by other users; it is unpickled"):
+        external_demonstrator("Pendulum-v1", f"sb3:SAC:{plugin / 'sac.zip'}")
+
+
+def test_your_own_environment_end_to_end_through_the_cli(plugin):
+    """The README's steps: collect and train see the task through a tasks file; eval and report through the
+    checkpoint and the results, which carry its spec."""
+    tasks = plugin / "tasks.yaml"
+    collected = vintix_cli("--tasks-file", str(tasks), "collect", "--recipe", "recipe.yaml", "--out", "data",
+                           cwd=plugin)
+    assert "wrote 4 histories (8,000 steps)" in collected
+    vintix_cli("train", "--config", "tiny", "--data", "data", "--out", "run", "--set", "max_steps=20", "--set",
+               "batch_size=4", "--set", "window_len=256", "--set", "checkpoint_every=20", cwd=plugin, tasks_file=tasks)
+    vintix_cli("eval", "--checkpoint", "run", "--tasks", "Pendulum-v1", "--shots", "2", "--seeds", "2", "--out",
+               "results", cwd=plugin)
+    rows = list(csv.DictReader((plugin / "results" / "episodes.csv").open()))
+    assert len(rows) == 4 and {r["task"] for r in rows} == {"Pendulum-v1"} and all(r["normalized_ours"] for r in rows)
+    assert "wrote report/report.md" in vintix_cli("report", "results", "--out", "report", cwd=plugin)
+    assert "Pendulum-v1" in (plugin / "report" / "report.md").read_text()
+    plotted = vintix_cli("data", "plot", "data", "--out", "plots", cwd=plugin, tasks_file=tasks)
+    assert "wrote 2 figures" in plotted
+
+
+def test_the_demonstrator_of_a_custom_task_must_be_named(no_custom_tasks, tmp_path):
+    from vintix.demonstrators import load_demonstrator
+
+    vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=200)
+    with pytest.raises(VintixError, match=textwrap.shorten("name one in the recipe, demonstrator:", 60)):
+        load_demonstrator("Pendulum-v1")
