@@ -490,3 +490,11 @@ def test_a_v5_env_seen_through_its_layout_is_the_v4_env(task, model_dim):
     for _ in range(10):
         action = rng.uniform(-0.4, 0.4, v5.action_space.shape)
         np.testing.assert_allclose(layout.apply(v5.step(action)[0]), v4.step(action)[0], atol=1e-6)
+
+
+def test_eval_runs_a_raw_release_snapshot_through_the_cli(release, tmp_path):
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(release[0]), "--tasks", "reach-v3,IB-p-40",
+                                      "--shots", "1", "--seeds", "1", "--out", str(tmp_path / "results")])
+    assert result.exit_code == 0, result.output
+    rows = (tmp_path / "results" / "episodes.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[1].startswith("reach-v3") and rows[2].startswith("industrial-benchmark-40-v1")

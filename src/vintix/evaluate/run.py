@@ -37,7 +37,7 @@ from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.summary import best_k_plateau
 from vintix.fields import check_field_types
 from vintix.model.model import Vintix
-from vintix.tasks import DOMAINS, TaskSpec, action_box, get_task, make_env, resolve_tasks
+from vintix.tasks import DOMAINS, TaskSpec, action_box, find_task, get_task, make_env, resolve_tasks
 from vintix.tasks.custom import custom_specs
 from vintix.tasks.scores import Reference, missing_reference_note, reference
 from vintix.train.config import SELECT_METRICS, ConfigError, TrainConfig
@@ -123,14 +123,17 @@ def parse_variation(items: Sequence[str]) -> dict[str, float]:
     return variation
 
 
-def select_tasks(selectors: Sequence[str], groups: Sequence[str]) -> tuple[list[TaskSpec], list[str]]:
+def select_tasks(selectors: Sequence[str], groups: Sequence[str], checkpoint_tasks: Sequence[str] = ()
+                 ) -> tuple[list[TaskSpec], list[str]]:
     """Tasks to evaluate and notes on the ones skipped: a domain or split keeps the tasks of the
-    checkpoint's groups; a task named explicitly whose group the checkpoint lacks is an error."""
+    checkpoint's groups and those it has statistics for (an imported model's groups have other names);
+    a task named explicitly that is neither is an error."""
     selectors = [s for selector in selectors for s in selector.split(",") if s]
     named = {get_task(s).name for s in selectors if s not in DOMAINS and s not in ("train", "test")}
+    known = {spec.name for task in checkpoint_tasks if (spec := find_task(task)) is not None}
     kept, skipped = [], []
     for spec in resolve_tasks(selectors):
-        if spec.group in groups:
+        if spec.group in groups or spec.name in known:
             kept.append(spec)
         elif spec.name in named:
             raise UnknownTaskError(
@@ -364,7 +367,7 @@ def evaluate(
     if out is not None:
         check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
         check_output_kind(out, "results")
-    specs, notes = select_tasks(config.tasks, list(agent.model.groups))
+    specs, notes = select_tasks(config.tasks, list(agent.model.groups), [t.task for t in agent.model.task_norms])
     refs, missing = references([s.name for s in specs])
     started = time.time()
     rows = run_episodes(agent, config, specs, progress, ray, checkpoint)
