@@ -156,21 +156,21 @@ def test_a_recipe_demonstrator_and_a_model_file_demonstrator(plugin, no_custom_t
 
 
 def test_your_own_environment_end_to_end_through_the_cli(plugin):
-    """The README's steps: collect and train see the task through a tasks file; eval and report through the
-    checkpoint and the results, which carry its spec."""
+    """The README's steps: collect sees the task through a tasks file; every later command through what it
+    reads (the dataset's task JSON, the checkpoint, the results), which carries its spec."""
     tasks = plugin / "tasks.yaml"
     collected = vintix_cli("--tasks-file", str(tasks), "collect", "--recipe", "recipe.yaml", "--out", "data",
                            cwd=plugin)
     assert "wrote 4 histories (8,000 steps)" in collected
     vintix_cli("train", "--config", "tiny", "--data", "data", "--out", "run", "--set", "max_steps=20", "--set",
-               "batch_size=4", "--set", "window_len=256", "--set", "checkpoint_every=20", cwd=plugin, tasks_file=tasks)
+               "batch_size=4", "--set", "window_len=256", "--set", "checkpoint_every=20", cwd=plugin)
     vintix_cli("eval", "--checkpoint", "run", "--tasks", "Pendulum-v1", "--shots", "2", "--seeds", "2", "--out",
                "results", cwd=plugin)
     rows = list(csv.DictReader((plugin / "results" / "episodes.csv").open()))
     assert len(rows) == 4 and {r["task"] for r in rows} == {"Pendulum-v1"} and all(r["normalized_ours"] for r in rows)
     assert "wrote report/report.md" in vintix_cli("report", "results", "--out", "report", cwd=plugin)
     assert "Pendulum-v1" in (plugin / "report" / "report.md").read_text()
-    plotted = vintix_cli("data", "plot", "data", "--out", "plots", cwd=plugin, tasks_file=tasks)
+    plotted = vintix_cli("data", "plot", "data", "--out", "plots", cwd=plugin)
     assert "wrote 2 figures" in plotted
 
 

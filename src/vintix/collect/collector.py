@@ -40,6 +40,7 @@ from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstr
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
 from vintix.tasks import TaskSpec, action_box, get_task, make_env
+from vintix.tasks.custom import custom_specs
 
 DEFAULT_ENVS_PER_BATCH = 16
 """`CollectionPlan.envs_per_batch` unless given."""
@@ -357,9 +358,12 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
         spec = get_task(plan.task)
         _check_existing_histories(plan, root)
         # The noise-free tail fraction tells expert distillation (a training ablation) which rows to keep.
+        # A task of your own travels with its data, so training and `vintix data` need no registration.
+        custom = custom_specs([spec.name])
         write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
                             domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale,
-                            noise_free_fraction=plan.schedule.noise_free_fraction)
+                            noise_free_fraction=plan.schedule.noise_free_fraction,
+                            **({"custom_task": custom[spec.name]} if custom else {}))
         jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)
                  if not all(history_path(root, spec, i).exists() for i in indices)]
     if ray is not None:

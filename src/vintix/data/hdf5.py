@@ -41,7 +41,8 @@ import h5py
 import numpy as np
 
 from vintix.atomic import atomic_write_text, make_parent_dirs, partial_path, publish
-from vintix.errors import DatasetError
+from vintix.errors import DatasetError, VintixError
+from vintix.tasks.custom import register_specs
 
 MAX_GROUP_ROWS = 10_000
 """Most rows a step group may hold in the official format."""
@@ -645,6 +646,11 @@ def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
     for rule, ok in checks.items():
         if not ok:
             raise DatasetError(path, f"{rule}; {fix}")
+    if "custom_task" in meta:  # a task of the user's own, registered here from the spec its collector wrote
+        try:
+            register_specs({meta["task_name"]: meta["custom_task"]}, str(path))
+        except VintixError as error:
+            raise DatasetError(path, f"its custom_task spec: {error}") from error
     return meta
 
 
