@@ -122,12 +122,16 @@ def test_fit_schedule_on_histories_without_a_recorded_schedule_names_the_file(tm
     assert result.exit_code == 2 and "history_0.h5" in result.output and "records no noise schedule" in result.output
 
 
-def test_collect_a_shipped_recipe_then_rerun_collects_nothing(tmp_path):
-    result = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path)])
+def test_collect_a_shipped_recipe_then_rerun_collects_nothing_and_train_the_same_preset_on_it(tmp_path):
+    result = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path / "data")])
     assert result.exit_code == 0, result.output
-    assert "wrote 4 histories" in result.output and "collected 4,000 steps" in result.output
-    again = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path)])
+    assert "wrote 4 histories" in result.output and "collected 4,096 steps" in result.output
+    again = runner.invoke(app, ["collect", "--recipe", "tiny", "--out", str(tmp_path / "data")])
     assert again.exit_code == 0 and "collected 0 steps" in again.output
+    # collect --recipe tiny composes with train --config tiny: its histories hold the tiny model's window
+    trained = runner.invoke(app, ["train", "--config", "tiny", "--data", str(tmp_path / "data"), "--out",
+                                  str(tmp_path / "run"), "--set", "max_steps=2", "--set", "batch_size=2"])
+    assert trained.exit_code == 0, trained.output
 
 
 def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_path, without_shipped_weights):

@@ -18,11 +18,16 @@ def test_epsilon_starts_at_one_and_reaches_zero_at_the_noise_free_tail():
 
 def test_curvature_above_one_keeps_noise_high_for_longer():
     steps = np.arange(100)
-    flat_start = NoiseSchedule(curvature=3.0).epsilon(steps, 100)
-    linear = NoiseSchedule(curvature=1.0).epsilon(steps, 100)
-    steep_start = NoiseSchedule(curvature=0.5).epsilon(steps, 100)
+    flat_start = NoiseSchedule(curvature=3.0, noise_free_fraction=0.0).epsilon(steps, 100)
+    linear = NoiseSchedule(curvature=1.0, noise_free_fraction=0.0).epsilon(steps, 100)
+    steep_start = NoiseSchedule(curvature=0.5, noise_free_fraction=0.0).epsilon(steps, 100)
     np.testing.assert_allclose(linear, 1 - steps / 100)
     assert np.all(flat_start[1:] > linear[1:]) and np.all(steep_start[1:] < linear[1:])
+
+
+def test_the_default_noise_free_tail_is_the_cli_and_recipes_5_percent():
+    assert NoiseSchedule().noise_free_fraction == 0.05
+    assert not NoiseSchedule().epsilon(np.arange(950, 1000), 1000).any()
 
 
 def test_a_noise_free_fraction_of_one_is_the_demonstrator_alone():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import importlib.util
 import io
 import json
 import sys
@@ -91,6 +92,14 @@ def _main(
             register_tasks_file(path)
     except VintixError as error:
         raise _fail(error) from None
+
+
+def _shipped_recipes() -> list[str]:
+    """The shipped recipes' names, found without importing vintix.collect (seconds of imports that
+    `vintix --help` should not pay); `vintix.collect.recipe.shipped_recipes` is the same list."""
+    spec = importlib.util.find_spec("vintix.collect")
+    folder = Path(next(iter(spec.submodule_search_locations or []))) / "recipes" if spec else None
+    return sorted(p.stem for p in folder.glob("*.yaml")) if folder and folder.is_dir() else []
 
 
 def _runnable_tasks(selectors: list[str]) -> list[TaskSpec]:
@@ -188,11 +197,12 @@ def collect(
                                                 "(not needed with --plan)")] = None,
     task: Annotated[str | None, typer.Option(help="one task (or use --recipe)")] = None,
     recipe: Annotated[str | None, typer.Option(
-        help="a recipe YAML file, or a shipped one: tiny, metaworld-cpu")] = None,
+        help=f"a recipe YAML file, or a shipped one: {', '.join(_shipped_recipes())}")] = None,
     histories: Annotated[int, typer.Option(help="learning histories for --task")] = 1,
     steps: Annotated[int, typer.Option(help="steps per history for --task")] = 10_000,
     curvature: Annotated[float, typer.Option(help="noise schedule curvature p for --task")] = 1.0,
-    noise_free_fraction: Annotated[float, typer.Option(help="noise-free tail fraction f for --task")] = 0.05,
+    noise_free_fraction: Annotated[float | None, typer.Option(
+        help="noise-free tail fraction f for --task (default: the noise schedule's, 0.05)")] = None,
     pilot_steps: Annotated[int, typer.Option(help="for --task: fit each history's knots to a pilot run of this many "
                                              "steps on its own env first (0: none; see NoiseSchedule)")] = 0,
     envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 16,
@@ -215,7 +225,8 @@ def collect(
         if recipe is not None and task is None:
             plans = load_recipe(recipe)
         elif task is not None and recipe is None:
-            schedule = NoiseSchedule(curvature, noise_free_fraction, pilot_steps=pilot_steps)
+            schedule = (NoiseSchedule(curvature, pilot_steps=pilot_steps) if noise_free_fraction is None
+                        else NoiseSchedule(curvature, noise_free_fraction, pilot_steps=pilot_steps))
             plans = [CollectionPlan(task, histories, steps, schedule, seed, envs_per_batch)]
         else:
             raise VintixError("give exactly one of --task or --recipe")

@@ -24,9 +24,9 @@ class NoiseSchedule:
 
     curvature: float = 1.0
     """p: > 1 keeps ε high for longer, then drops it (for returns that rise early); < 1 the opposite."""
-    noise_free_fraction: float = 0.0
+    noise_free_fraction: float = 0.05
     """f: the fraction of the history, at its end, played by the demonstrator alone (1: all of it,
-    expert data for the expert-distillation baseline)."""
+    expert data for the expert-distillation baseline); one default for Python, the CLI and recipes."""
     knots: tuple[float, ...] = ()
     """ε at evenly spaced points of the noised part of the history, from 1 down to 0, instead of the
     curvature (`fit_knots` places them so the expected return rises linearly); empty: the power law."""

@@ -32,6 +32,12 @@ SCHEDULE_KEYS = {f.name for f in dataclasses.fields(NoiseSchedule)}
 PLAN_KEYS = {f.name for f in dataclasses.fields(CollectionPlan)} - {"task", "schedule"}
 
 
+def shipped_recipes() -> list[str]:
+    """Names of the recipes the package ships (`vintix collect --recipe NAME`)."""
+    return sorted(p.name.removesuffix(".yaml") for p in resources.files("vintix.collect").joinpath("recipes").iterdir()
+                  if p.name.endswith(".yaml"))
+
+
 def recipe_path(name_or_path: str | Path) -> Path:
     """A recipe file, or the name of one the package ships ('tiny', 'metaworld-cpu', ...)."""
     path = Path(name_or_path)
@@ -40,10 +46,8 @@ def recipe_path(name_or_path: str | Path) -> Path:
     shipped = resources.files("vintix.collect").joinpath("recipes").joinpath(f"{name_or_path}.yaml")
     if shipped.is_file():
         return Path(str(shipped))
-    names = sorted(p.name.removesuffix(".yaml")
-                   for p in resources.files("vintix.collect").joinpath("recipes").iterdir())
     raise FileNotFoundError(
-        f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {names}")
+        f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {shipped_recipes()}")
 
 
 def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
