@@ -49,3 +49,23 @@ def test_the_shipped_model_acts_within_bounds_in_all_three_domains_and_on_held_o
         starts[:] = False
     for env in envs:
         env.close()
+
+
+def test_results_name_a_shipped_model_by_its_name_and_a_local_checkpoint_relative_to_the_working_directory(
+        tmp_path, monkeypatch):
+    import json
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from vintix.agent.pretrained import resolve_checkpoint
+    from vintix.cli import app
+
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(resolve_checkpoint("point-goal"), tmp_path / "models" / "mine")
+    for given, name in (("point-goal", "point-goal"), ("models/mine", "models/mine"),
+                        (str(tmp_path / "models" / "mine"), "models/mine")):
+        result = CliRunner().invoke(app, ["eval", "--checkpoint", given, "--tasks", "point-goal-v1", "--shots", "1",
+                                          "--seeds", "1", "--out", "results"])
+        assert result.exit_code == 0, result.output
+        assert json.loads((tmp_path / "results" / "run.json").read_text())["checkpoint"] == name

@@ -7,6 +7,7 @@ import importlib.util
 import io
 import json
 import sys
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -87,6 +88,10 @@ def _main(
 ) -> None:
     from vintix.tasks.custom import register_tasks_file
 
+    # Simulator warnings that say nothing to a user of the CLI, once for every command (and the worker
+    # processes it forks): metaworld's scripted policies warn on every batch that the env clips their
+    # actions to [-1, 1], which it does by design.
+    warnings.filterwarnings("ignore", message=r"Constant\(s\) may be too high", category=UserWarning)
     try:
         for path in tasks_file or []:
             register_tasks_file(path)
@@ -870,6 +875,7 @@ def eval_command(
     from rich.progress import Progress
 
     from vintix.agent import Agent, resolve_checkpoint
+    from vintix.agent.pretrained import checkpoint_name
     from vintix.evaluate import EvalConfig, evaluate, parse_variation, shot_curves, shots_to_show, summarize
     from vintix.tasks.scores import check_table
 
@@ -879,10 +885,10 @@ def eval_command(
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
                             prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input)
-        checkpoint = resolve_checkpoint(checkpoint)
-        agent = Agent.from_pretrained(checkpoint, device)
+        resolved = resolve_checkpoint(checkpoint)
+        agent = Agent.from_pretrained(resolved, device)
         with Progress(console=console) as progress:
-            rows, notes = evaluate(agent, config, out, str(checkpoint), label, progress, ray)
+            rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, progress, ray)
         summary = summarize(rows, reference)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None

@@ -51,3 +51,17 @@ def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
         return shipped
     raise CheckpointError(f"{name_or_path}: no such checkpoint or run folder, and no shipped model of that name "
                           f"(shipped: {', '.join(shipped_models()) or 'none'})")
+
+
+def checkpoint_name(given: str | os.PathLike[str], resolved: Path) -> str:
+    """How results name the checkpoint they came from, without this machine's absolute paths where that
+    can be helped: a shipped model by its name, an imported release snapshot by the folder given, a
+    checkpoint under the working directory relative to it, any other by its path."""
+    if resolved.parent == _shipped_root():
+        return resolved.name
+    if is_official_snapshot(Path(given)):
+        return str(given)
+    try:
+        return str(resolved.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(resolved)

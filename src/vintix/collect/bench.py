@@ -128,7 +128,7 @@ def benchmark_collection(tasks: list[str], steps: int, envs_per_batch: int, repe
     """Raw and collector steps/s of each task, `repeats` times, medians kept; tasks without a
     demonstrator get uniform-random play's rate only."""
     results = []
-    for task in tqdm(tasks, desc="tasks", disable=len(tasks) < 2):
+    for task in tqdm(tasks, desc="tasks", disable=True if len(tasks) < 2 else None):
         spec = get_task(task)
         name, demonstrator = spec.name, demonstrator_or_none(spec.name)
         if demonstrator is None:  # uniform-random play over about `steps` steps, as `vintix check-envs` times it

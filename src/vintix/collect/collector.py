@@ -262,7 +262,7 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
     observations = np.stack([env.reset()[0] for env in envs])
     block = _Block.empty(min(BLOCK_STEPS, total), len(envs), observations.shape[1], len(low))
     step_nums = np.zeros(len(envs), dtype=np.int64)
-    for t in tqdm(range(total), desc=label, position=progress_position, leave=False, mininterval=1.0):
+    for t in tqdm(range(total), desc=label, position=progress_position, leave=False, mininterval=1.0, disable=None):
         k = t % len(block.step_num)
         if k == 0:
             size = min(len(block.step_num), total - t)

@@ -450,8 +450,9 @@ class Trainer:
                 print("expert distillation: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
         # Per group: summed window loss, windows, training FLOPs since the last log line.
         sums = torch.zeros(len(groups), 3, dtype=torch.float64, device=self.device)
-        progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train", disable=not self.dist.is_main,
-                        dynamic_ncols=True)
+        # disable=None: quiet when not on a terminal, where each redraw would be a line of the log
+        progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train",
+                        disable=None if self.dist.is_main else True, dynamic_ncols=True)
         batches = iter(self._loader())
         last_time, last_tokens, last_dir = time.perf_counter(), self.tokens, None
         while self.step < stop:
