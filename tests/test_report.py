@@ -209,3 +209,16 @@ def test_model_card_option_puts_the_released_models_scores_beside_each_task_and_
     assert reach.split(" | ")[7] == "1.01"  # the card's reach-v2
     assert pendulum.split(" | ")[7] == "1.00"  # the card's invertedpendulum_v4
     assert next(line for line in report.splitlines() if line.startswith("| mujoco")).endswith("| 0.99 |")
+
+
+def test_domain_intervals_resample_runs_within_each_task():
+    from vintix.evaluate.summary import stratified_iqm_with_ci
+
+    rng = np.random.default_rng(0)
+    low_task, high_task = rng.normal(0.0, 0.05, 10), rng.normal(1.0, 0.05, 10)
+    point, low, high = stratified_iqm_with_ci([low_task, high_task])
+    pooled = iqm_with_ci(np.concatenate([low_task, high_task]))
+    assert point == pytest.approx(pooled[0])
+    # Pooled resampling also draws how many runs of each task a resample gets; stratified does not.
+    assert high - low < 0.5 * (pooled[2] - pooled[1])
+    assert stratified_iqm_with_ci([np.array([0.3]), np.array([0.5])]) == (0.4, 0.4, 0.4)

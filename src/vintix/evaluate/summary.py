@@ -31,6 +31,25 @@ def iqm_with_ci(values: np.ndarray, confidence: float = 0.95, resamples: int = 2
     return point, float(result.confidence_interval.low), float(result.confidence_interval.high)
 
 
+def stratified_iqm_with_ci(groups: Sequence[np.ndarray], confidence: float = 0.95, resamples: int = 2000,
+                           seed: int = 0) -> tuple[float, float, float]:
+    """IQM over the runs of several tasks pooled, with a stratified percentile-bootstrap CI (as rliable
+    does): each resample draws runs with replacement *within* each task, so every task keeps its share
+    of the runs and the interval reflects run-to-run noise, not which tasks a resample happened to draw."""
+    groups = [g[np.isfinite(g)] for g in (np.asarray(g, dtype=np.float64) for g in groups)]
+    groups = [g for g in groups if len(g)]
+    if not groups:
+        return float("nan"), float("nan"), float("nan")
+    pooled = np.concatenate(groups)
+    point = float(iqm(pooled))
+    if all(len(g) < 2 for g in groups) or np.ptp(pooled) == 0:
+        return point, point, point
+    rng = np.random.default_rng(seed)
+    draws = np.concatenate([g[rng.integers(0, len(g), (resamples, len(g)))] for g in groups], axis=1)
+    low, high = np.percentile(iqm(draws, axis=1), [50 * (1 - confidence), 50 * (1 + confidence)])
+    return point, float(low), float(high)
+
+
 def window_means(curves: np.ndarray, k: int) -> np.ndarray:
     """Means over every `k` consecutive shots of score-vs-shot curves (shots on the last axis); `k`
     longer than the curves means the whole curve."""

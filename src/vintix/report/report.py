@@ -24,13 +24,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
+from matplotlib.ticker import MaxNLocator
 
 from vintix.atomic import atomic_path, atomic_write_text, check_output_kind
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
-from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci
+from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci, stratified_iqm_with_ci
 from vintix.tasks import get_task
 from vintix.tasks.custom import register_specs
 from vintix.tasks.scores import (
@@ -150,9 +152,17 @@ def _checked_episode(row: dict[str, str]) -> tuple[float, int, float]:
     return episode_return, shot, success
 
 
-def curve_with_ci(scores: np.ndarray) -> np.ndarray:
-    """IQM and 95 % CI over runs at each shot: ``[shots, 3]`` (point, low, high)."""
-    return np.array([iqm_with_ci(scores[:, shot]) for shot in range(scores.shape[1])])
+def curve_with_ci(scores: np.ndarray | list[np.ndarray]) -> np.ndarray:
+    """IQM and 95 % CI over runs at each shot: ``[shots, 3]`` (point, low, high). A list of several
+    tasks' ``[runs, shots]`` arrays pools their runs, with a bootstrap stratified by task."""
+    if isinstance(scores, np.ndarray):
+        return np.array([iqm_with_ci(scores[:, shot]) for shot in range(scores.shape[1])])
+    shots = min(s.shape[1] for s in scores)
+    return np.array([stratified_iqm_with_ci([s[:, shot] for s in scores]) for shot in range(shots)])
+
+
+FEW_RUNS = 5
+"""Below this many runs a bootstrap CI says little: figures and tables say so"""
 
 
 def converged(scores: np.ndarray, k: int) -> tuple[float, int]:
@@ -173,13 +183,21 @@ def plot_curves(curves: dict[str, tuple[np.ndarray, int]], title: str, path: Pat
     axis = figure.subplots()
     for label, (curve, runs) in curves.items():
         shots = np.arange(1, len(curve) + 1)
-        axis.plot(shots, curve[:, 0], label=f"{label} ({runs} runs)")
+        few = f"; fewer than {FEW_RUNS}: the band says little" if runs < FEW_RUNS else ""
+        axis.plot(shots, curve[:, 0], marker="o" if len(shots) < 12 else None, markersize=3,
+                  label=f"{label} ({runs} runs{few})")
         axis.fill_between(shots, curve[:, 1], curve[:, 2], alpha=0.2)
     axis.axhline(1.0, color="gray", linestyle="--", linewidth=0.8)
     axis.axhline(0.0, color="gray", linestyle=":", linewidth=0.8)
+    axis.xaxis.set_major_locator(MaxNLocator(integer=True))  # shots are whole episodes
     axis.set(xlabel="shot (episode from an empty context)", ylabel="normalized score (IQM, 95% CI)", title=title)
-    axis.legend(fontsize=7)
+    _legend_below(axis)
     return _save(figure, path)
+
+
+def _legend_below(axis: Axes) -> None:
+    """The legend under the plot, where it cannot cover a curve or a marker."""
+    axis.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, frameon=False)
 
 
 def plot_first_vs_converged(rows: list[tuple[str, str, float, float, float | None]], k: int, path: Path) -> Path:
@@ -188,7 +206,7 @@ def plot_first_vs_converged(rows: list[tuple[str, str, float, float, float | Non
     axis = figure.subplots()
     x = np.arange(len(rows))
     axis.bar(x - 0.2, [r[2] for r in rows], width=0.4, label="first shot")
-    axis.bar(x + 0.2, [r[3] for r in rows], width=0.4, label=f"converged (best {k}-shot plateau)")
+    axis.bar(x + 0.2, [r[3] for r in rows], width=0.4, label=f"converged (best {k}-shot mean)")
     paper = [(i, r[4]) for i, r in enumerate(rows) if r[4] is not None]
     if paper:
         axis.scatter([i for i, _ in paper], [p for _, p in paper], color="black", marker="_", s=200, zorder=3,
@@ -196,7 +214,7 @@ def plot_first_vs_converged(rows: list[tuple[str, str, float, float, float | Non
     axis.set_xticks(x, [f"{r[1]}\n{r[0]}" for r in rows], rotation=90, fontsize=7)
     axis.axhline(1.0, color="gray", linestyle="--", linewidth=0.8)
     axis.set(ylabel="normalized score (mean over runs)", title="first shot vs converged")
-    axis.legend(fontsize=7)
+    axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return _save(figure, path)
 
 
@@ -347,8 +365,8 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
                 cells += ["—"] * len(per_label)
                 continue
             shots = min(r.scores[v].shape[1] for v in variants)
-            pooled = np.concatenate([r.scores[v][:, :shots] for v in variants])
-            curves[r.label] = (curve_with_ci(pooled), len(pooled))
+            per_task = [r.scores[v][:, :shots] for v in variants]
+            curves[r.label] = (curve_with_ci(per_task), sum(len(runs) for runs in per_task))
             plateaus = np.array([converged(r.scores[v], plateau_shots)[0] for v in variants])
             cells += [_ci(*curves[r.label][0][0]), _ci(*iqm_with_ci(plateaus))]
             if with_success:
@@ -392,11 +410,16 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
                 cells.append("—" if blind is None else _rate(blind.goal_blind_success))
             lines.append("| " + " | ".join(cells) + " |")
         plot_curves(curves, variant, figures / "tasks" / f"{_slug(variant)}.png")
-    plot_first_vs_converged(bars, plateau_shots, figures / "first-vs-converged.png")
+    longest = max(scores.shape[1] for r in results for scores in r.scores.values())
+    plot_first_vs_converged(bars, min(plateau_shots, longest), figures / "first-vs-converged.png")
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
     lines += [f"![{v}](figures/tasks/{_slug(v)}.png)" for v in sorted({v for r in results for v in r.scores})]
     ablations, unmatched = reward_ablations(results)
     notes += unmatched
+    few = sorted({f"{v} ({r.label}: {len(r.scores[v])})" for r in results for v in r.scores
+                  if len(r.scores[v]) < FEW_RUNS})
+    if few:
+        notes.append(f"fewer than {FEW_RUNS} runs, so confidence intervals that say little: {', '.join(few)}")
     if ablations:
         lines += reward_gap_section(ablations, table, plateau_shots)
     if notes:
