@@ -6,12 +6,15 @@ import sys
 import tempfile
 from pathlib import Path
 
-import gymnasium as gym
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_official_checkpoint import random_inputs, reference_forward, write_release  # noqa: E402
-from vintix.agent import Agent  # noqa: E402
+from test_official_checkpoint import (  # noqa: E402
+    cached_agent_difference,
+    random_inputs,
+    reference_forward,
+    write_release,
+)
 from vintix.model import load_pretrained  # noqa: E402
 from vintix.model.official import export_official, import_official  # noqa: E402
 
@@ -44,23 +47,7 @@ def main() -> None:
     print(f"full-window forward, {STEPS} steps, {len(tasks)} tasks: max |diff| {full:.2e}")
 
     stepped = tasks[:4]
-    inputs = [random_inputs(metadata, t, STEPS, seed=i) for i, t in enumerate(stepped)]
-    agent = Agent(model)
-    agent.reset([t.replace("-v2", "-v3") for t in stepped],
-                [gym.spaces.Box(-1e3, 1e3, (metadata[t]["action_dim"],)) for t in stepped])
-    taken: list[list[torch.Tensor]] = [[] for _ in stepped]
-    for t in range(STEPS):
-        actions = agent.act([i[0][t].numpy() for i in inputs], [float(i[1][t]) for i in inputs],
-                            [bool(i[2][t] == 0) for i in inputs])
-        for k, action in enumerate(actions):
-            taken[k].append(torch.tensor(action))
-    cached = 0.0
-    for k, task in enumerate(stepped):
-        actions = torch.stack(taken[k])
-        prev_action = torch.cat([torch.zeros(1, actions.shape[1]), actions[:-1]])
-        obs, reward, step_num = inputs[k]
-        expected = reference_forward(state, config, metadata, task, obs, prev_action, reward, step_num)
-        cached = max(cached, float((actions - expected).abs().max()))
+    cached = cached_agent_difference(model, state, config, metadata, stepped, STEPS)
     print(f"cached agent, {len(stepped)} envs of 2 groups, {STEPS} steps: max |diff| {cached:.2e}")
 
     exported = export_official(root / "imported", root / "exported")
