@@ -397,3 +397,15 @@ def test_demonstrator_eval_writes_to_the_users_folder_and_leaves_the_package_tab
     assert rows[("reach-v3", "demonstrator")] == rows[("reach-v3", "random")] == 1  # asked for: replaced
     assert len(rows) == len(read_scores(tmp_path / "before.csv"))
     assert str(package_table) in " ".join(asked.output.split())
+
+
+def test_training_writes_to_the_users_folder_and_a_recipe_can_collect_with_those_weights(tmp_path):
+    from vintix.demonstrators.base import external_demonstrator
+    from vintix.demonstrators.trained import shipped_weights_dir
+    from vintix.demonstrators.training import trained_weights_dir
+
+    assert trained_weights_dir() == tmp_path / "user-cache" / "vintix" / "demonstrators"  # never the package
+    demonstrator = external_demonstrator("InvertedPendulum-v5", f"weights:{shipped_weights_dir()}")
+    env = make_env("InvertedPendulum-v5", seed=0)
+    obs, _ = env.reset()
+    assert demonstrator.act(obs[None], [env]).shape == (1, 1)

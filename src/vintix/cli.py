@@ -298,11 +298,15 @@ def demonstrator_train(
     timesteps: Annotated[int | None, typer.Option(min=1, help="env steps (default: the group's recipe)")] = None,
     seed: Annotated[int, typer.Option(min=0)] = 0,
     out: Annotated[Path | None, typer.Option(
-        help="folder for the weights (default: the package's shipped ones)")] = None,
+        help="folder for the weights (default: ~/.cache/vintix/demonstrators)")] = None,
+    update_package_weights: Annotated[bool, typer.Option(
+        "--update-package-weights", help="write the weights into the package instead, replacing the shipped "
+        "demonstrator of the group that every collection uses")] = False,
 ) -> None:
     """Train a MuJoCo or Industrial Benchmark demonstrator with Stable-Baselines3 and save its weights."""
     from stable_baselines3.common.callbacks import BaseCallback
 
+    from vintix.demonstrators.trained import shipped_weights_dir
     from vintix.demonstrators.training import TrainingInterrupted, recipe_for, train_demonstrator
 
     class SayWhereItStarts(BaseCallback):
@@ -318,7 +322,10 @@ def demonstrator_train(
         until = ("" if recipe.stop_at_score is None
                  else f", or until it scores {recipe.stop_at_score} of the paper's expert")
         console.print(f"training {recipe.algorithm} for {timesteps or recipe.timesteps:,} steps on {task}{until}")
-        path = train_demonstrator(task, timesteps, seed, out, callback=SayWhereItStarts(), report=console.print)
+        if update_package_weights and out is not None:
+            raise VintixError("give --out or --update-package-weights, not both")
+        target = shipped_weights_dir() if update_package_weights else out
+        path = train_demonstrator(task, timesteps, seed, target, callback=SayWhereItStarts(), report=console.print)
     except VintixError as error:
         raise _fail(error) from None
     except TrainingInterrupted as interrupted:
@@ -333,8 +340,11 @@ def demonstrator_train(
                 if "state" in short else "")
         console.print(f"[yellow]the budget of {short['budget']:,} steps ended below the target score "
                       f"{short['target']}[/]{kept}")
-    console.print(f"wrote {path} and {path.with_suffix('.json')}; "
-                  f"score it with `vintix demonstrator eval --task {task}`")
+    shipped = path.parent == shipped_weights_dir()
+    use = "" if shipped else (f"; collect with it through a recipe's `demonstrator: weights:{path.parent}`, ship it "
+                              "with --update-package-weights")
+    console.print(f"wrote {path} and {path.with_suffix('.json')}; score it with `vintix demonstrator eval --task "
+                  f"{task}{'' if shipped else f' --weights {path.parent}'}`{use}", highlight=False)
 
 
 @demonstrator_app.command("eval")

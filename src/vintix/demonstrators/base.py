@@ -96,9 +96,13 @@ def external_demonstrator(task: str, source: str) -> Demonstrator:
       takes the task name will do);
     - ``sb3:ALGO:PATH`` or ``sbx:ALGO:PATH``: a model saved by Stable-Baselines3 or sbx (``model.save``),
       loaded by that library's ``ALGO.load``. Such a file is unpickled, which runs any code in it: vintix
-      loads it only when it is yours and nobody else can write it, and you must trust where it came from.
+      loads it only when it is yours and nobody else can write it, and you must trust where it came from;
+    - ``weights:DIR``: a folder of weights ``vintix demonstrator train`` wrote (weights-only safetensors),
+      instead of the shipped ones.
     """
     library, _, rest = source.partition(":")
+    if library == "weights":
+        return load_demonstrator(task, weights=Path(rest).expanduser())
     if library in _MODEL_LIBRARIES:
         algorithm, _, path = rest.partition(":")
         if not algorithm or not path:

@@ -61,7 +61,6 @@ from vintix.demonstrators.trained import (
     TrainedDemonstrator,
     first_observations,
     save_trained_policy,
-    shipped_weights_dir,
 )
 from vintix.errors import VintixError
 from vintix.tasks import get_task, list_tasks, make_env
@@ -517,11 +516,19 @@ def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume:
     return model, vec_normalize
 
 
+def trained_weights_dir() -> Path:
+    """Where `train_demonstrator` puts weights unless told otherwise: the user's folder, not the installed
+    package (which may be read-only, and whose weights every collection uses). Collect with them through
+    a recipe's ``demonstrator: weights:DIR``; score them with ``vintix demonstrator eval --weights DIR``."""
+    return user_cache_dir("demonstrators")
+
+
 def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, out: Path | None = None,
                        progress_bar: bool = True, recipe: DemonstratorRecipe | None = None,
                        state_dir: Path | None = None, save_minutes: float = 5.0,
                        callback: BaseCallback | None = None, report: Callable[[str], object] | None = None) -> Path:
-    """Train the demonstrator of `task`'s group and save it (default: into the package).
+    """Train the demonstrator of `task`'s group and save it into `out` (default: `trained_weights_dir`, the
+    user's folder; the package's shipped weights change only when `out` is `shipped_weights_dir()`).
 
     Returns the weights file. `timesteps` overrides the budget (e.g. for a quick check); `recipe`
     replaces the group's recipe (to try other hyperparameters). The resumable state is saved every
@@ -600,7 +607,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
         info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget,
                                    **({"state": str(state_dir)} if goes_on else {}),
                                    **({"best_check": {"folder": str(kept[0]), **kept[1]}} if kept else {})}
-    path = save_trained_policy(model, vec_normalize, spec.group, out or shipped_weights_dir(), info)
+    path = save_trained_policy(model, vec_normalize, spec.group, out or trained_weights_dir(), info)
     if goes_on:
         save_state()  # a larger budget (`--timesteps`) goes on from here rather than from scratch
     else:
