@@ -74,8 +74,9 @@ class CollectionPlan:
     (infers it from the rewards it earns; Meta-World and toy tasks; `vintix.demonstrators.posterior`)."""
     demonstrator: str | None = None
     """A demonstrator from outside the package: ``module:callable`` (called with the task name, returns a
-    Demonstrator) or ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only);
-    None: the package's own (`vintix.demonstrators.external_demonstrator`)."""
+    Demonstrator), ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only) or
+    ``weights:DIR`` (weights `vintix demonstrator train` wrote); None: the package's own
+    (`vintix.demonstrators.base.external_demonstrator`)."""
 
     def __post_init__(self) -> None:
         check_field_types(self, CollectionError)
