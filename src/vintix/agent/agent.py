@@ -29,7 +29,7 @@ from vintix.agent.cache import KVCache, cached_backbone
 from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import CheckpointError, load_pretrained
-from vintix.model.model import Vintix
+from vintix.model.model import Vintix, normalize_inputs
 from vintix.tasks import action_box, find_task, get_task, make_env
 from vintix.tasks.layouts import ObsLayout
 from vintix.train.checkpoint import intact_alternative_hint
@@ -360,9 +360,8 @@ class Agent:
             envs = batch.envs.tolist()
             o = torch.as_tensor(np.stack([self._model_obs(i, obs[i]) for i in envs]), dtype=torch.float32,
                                 device=self.device)
-            o = (o - batch.obs_mean.unsqueeze(1)) / batch.obs_std.unsqueeze(1)
             reward = torch.as_tensor(prev_rewards[envs], dtype=torch.float32, device=self.device)
-            reward = reward * batch.reward_scale.unsqueeze(1)
+            o, reward = normalize_inputs(o, reward, batch.obs_mean, batch.obs_std, batch.reward_scale)
             start = torch.as_tensor(episode_starts[envs], device=self.device)
             tokens[batch.envs] = self.model.encode(group, o, prev_actions[group], reward, start)
         return tokens

@@ -360,6 +360,14 @@ def _action_head(d_model: int, act_dim: int, hidden_layers: int, activation: str
     return nn.Sequential(*layers, nn.Linear(d_model, act_dim))
 
 
+def normalize_inputs(obs: torch.Tensor, reward: torch.Tensor, mean: torch.Tensor, divisor: torch.Tensor,
+                     reward_scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """What the model sees of raw inputs ``obs [B, T, obs_dim]`` and ``reward [B, T]``, given each
+    sequence's statistics ``mean, divisor [B, obs_dim]`` and ``reward_scale [B]``: the one place the
+    normalization is written, for training (`Vintix.normalize`) and the agent alike."""
+    return (obs - mean.unsqueeze(1)) / divisor.unsqueeze(1), reward * reward_scale.unsqueeze(1)
+
+
 # ----------------------------------------------------------------------------------------------
 # The model
 
@@ -471,9 +479,8 @@ class Vintix(nn.Module):
         """Per-task z-scored observations ``[B, T, obs_dim]`` and scaled rewards ``[B, T]``. The ``obs_std``
         buffer holds the divisor, ``max(std, std_floor) + std_epsilon``."""
         dim = obs.shape[-1]
-        mean = self.obs_mean[task_idx, :dim].unsqueeze(1)
-        std = self.obs_std[task_idx, :dim].unsqueeze(1)
-        return (obs - mean) / std, reward * self.reward_scale[task_idx].unsqueeze(1)
+        return normalize_inputs(obs, reward, self.obs_mean[task_idx, :dim], self.obs_std[task_idx, :dim],
+                                self.reward_scale[task_idx])
 
     def embed(
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
