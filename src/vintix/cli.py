@@ -585,6 +585,28 @@ def data_plot(
     console.print(f"wrote {len(written)} figures under {out} (normalized by the {scale})")
 
 
+@data_app.command("export-minari")
+def data_export_minari(
+    root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],
+    dataset_id: Annotated[str, typer.Option(help="Minari dataset id, e.g. vintix/reach-v3/noise-distilled-v0")],
+    task: Annotated[str | None, typer.Option(help="the task to export, where the dataset holds several")] = None,
+    author: Annotated[str | None, typer.Option(help="for Minari's metadata")] = None,
+    author_email: Annotated[str | None, typer.Option(help="for Minari's metadata")] = None,
+    code_permalink: Annotated[str | None, typer.Option(help="for Minari's metadata: the code behind the data")] = None,
+) -> None:
+    """Write one task's learning histories as a local Minari dataset (one Minari episode per episode)."""
+    from vintix.collect.export import export_minari
+
+    try:
+        dataset = export_minari(root, dataset_id, task, author=author, author_email=author_email,
+                                code_permalink=code_permalink)
+    except (VintixError, ValueError) as error:  # Minari raises ValueError for a bad or taken id
+        raise _fail(error) from None
+    console.print(f"wrote Minari dataset {dataset_id}: {dataset.total_episodes:,} episodes, {dataset.total_steps:,} "
+                  f"steps, under {dataset.storage.data_path.parent}; load it with minari.load_dataset({dataset_id!r})",
+                  highlight=False)
+
+
 @data_app.command("smoothness")
 def data_smoothness(
     root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")],

@@ -36,6 +36,7 @@ from vintix.atomic import check_output_kind, folder_lock
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
+from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
@@ -171,18 +172,24 @@ class _Block:
     step_num: np.ndarray
     noise: np.ndarray
     """Uniform noise of each history for these steps, drawn from its own RNG in one call per block."""
+    episode_end: np.ndarray
+    """0, or how the episode ended at this step (`vintix.data.hdf5.TERMINATED`, ...)"""
+    final_observation: np.ndarray
+    """the observation the env returned after an episode's last step (meaningful where `episode_end`)"""
 
     @classmethod
     def empty(cls, steps: int, histories: int, obs_dim: int, act_dim: int) -> _Block:
         return cls(np.empty((steps, histories, obs_dim), np.float32), np.empty((steps, histories, act_dim), np.float32),
                    np.empty((steps, histories, act_dim), np.float32), np.empty((steps, histories), np.float32),
-                   np.empty((steps, histories), np.int64), np.empty((steps, histories, act_dim)))
+                   np.empty((steps, histories), np.int64), np.empty((steps, histories, act_dim)),
+                   np.zeros((steps, histories), np.int8), np.zeros((steps, histories, obs_dim), np.float32))
 
     def write(self, steps: int, writers: Sequence[LearningHistoryWriter]) -> None:
         """Append the first `steps` rows of each history to its writer."""
         for i, writer in enumerate(writers):
             writer.append(self.observation[:steps, i], self.action[:steps, i], self.reward[:steps, i],
-                          self.step_num[:steps, i], demonstrator_action=self.demonstrator_action[:steps, i])
+                          self.step_num[:steps, i], demonstrator_action=self.demonstrator_action[:steps, i],
+                          episode_end=self.episode_end[:steps, i], final_observation=self.final_observation[:steps, i])
 
 
 def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
@@ -199,7 +206,7 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
         schedules = _history_schedules(plan, envs, demonstrator, [s.pilot_noise for s in seeds],
                                        f"{label} pilot", progress_position)
         writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim,
-                                         demonstrator_actions=True,
+                                         demonstrator_actions=True, episode_ends=True,
                                          attrs=plan.recorded_settings(i) | schedule.recorded())
                    for i, schedule in zip(indices, schedules, strict=True)]
         # One column per history only when pilots gave them schedules of their own: a 1M-step batch of 16
@@ -281,6 +288,11 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
             block.reward[k, i] = reward
             if learner is not None:
                 learner.observe(i, env, actions[i], float(reward), terminated or truncated)
+            # Terminated wins over truncated when both hold (gymnasium's convention for what ended it).
+            ended = TERMINATED if terminated else TRUNCATED if truncated else HISTORY_END if t == total - 1 else 0
+            block.episode_end[k, i] = ended
+            if ended:
+                block.final_observation[k, i] = next_obs
             if terminated or truncated:
                 next_obs, _ = env.reset()
                 step_nums[i] = 0

@@ -24,8 +24,9 @@ from vintix.data.hdf5 import CHECKSUM_CHUNK_ROWS, MAX_GROUP_ROWS
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, get_task
 
-GROUP_METADATA_BYTES = 16_000
-"""HDF5 metadata per step group (measured on our files: size minus allocated chunks)."""
+GROUP_METADATA_BYTES = 24_000
+"""HDF5 metadata per step group (measured on our files: size minus allocated chunks; 7,900 of it for the
+three episode-end datasets, docs/data-format.md §3.6)."""
 ROOT_ATTRIBUTE_BYTES = 4_300
 """The root attributes that say how a history was made (task, seeds, schedule): they overflow the root
 group's header into a block of their own (measured: files of 250 to 12,345 steps are 4,220-4,300 bytes
@@ -59,13 +60,17 @@ class TaskEstimate:
 
 
 def history_bytes(spec: TaskSpec, steps: int) -> int:
-    """Size on disk of one history of `steps` rows of `spec`."""
+    """Size on disk of one history of `steps` rows of `spec`; episodes are counted as running their full
+    length, so a task whose episodes end early writes 5 + 4·obs_dim bytes more per extra episode."""
     row = 4 * (spec.obs_dim + 2 * spec.act_dim + 2)
     groups = [min(MAX_GROUP_ROWS, steps - start) for start in range(0, steps, MAX_GROUP_ROWS)]
     # A group's chunks hold min(rows, CHECKSUM_CHUNK_ROWS) rows each, the last one allocated whole.
     allocated_rows = sum(n if n < CHECKSUM_CHUNK_ROWS else math.ceil(n / CHECKSUM_CHUNK_ROWS) * CHECKSUM_CHUNK_ROWS
                          for n in groups)
-    return row * allocated_rows + GROUP_METADATA_BYTES * math.ceil(steps / MAX_GROUP_ROWS) + ROOT_ATTRIBUTE_BYTES
+    # Each episode end: its row, its kind and the observation after it; at least one per episode_length steps.
+    episode_ends = math.ceil(steps / spec.episode_length) * (4 + 1 + 4 * spec.obs_dim)
+    return (row * allocated_rows + episode_ends + GROUP_METADATA_BYTES * math.ceil(steps / MAX_GROUP_ROWS)
+            + ROOT_ATTRIBUTE_BYTES)
 
 
 def collector_rate(task: str, rates: dict[str, CollectBenchmark]) -> tuple[float, bool]:

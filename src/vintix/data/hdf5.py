@@ -71,6 +71,13 @@ DEMONSTRATOR_ACTION = "demonstrator_action"
 """Optional dataset, float32 (n, act_dim): the demonstrator's action before noise, per row."""
 
 DEMONSTRATOR_ACTION_SPELLINGS = (DEMONSTRATOR_ACTION, "demonstrator_actions", "expert_action")
+
+EPISODE_END_ROW, EPISODE_END_KIND, FINAL_OBSERVATION = "episode_end_row", "episode_end_kind", "final_observation"
+"""Optional per-group datasets (§3.6 of docs/data-format.md): the rows that end an episode, how each ended,
+and the observation the env returned after it, which a row-per-step history otherwise never stores"""
+TERMINATED, TRUNCATED, HISTORY_END = 1, 2, 3
+"""How an episode ended: the env terminated it, its time limit truncated it, or the history stopped"""
+EPISODE_END_DATASETS = (EPISODE_END_ROW, EPISODE_END_KIND, FINAL_OBSERVATION)
 """Names under which histories store it (ours first, then the other names the Vintix II loader reads)."""
 
 
@@ -295,7 +302,7 @@ class LearningHistoryWriter:
 
     def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS,
                  attrs: dict[str, int | float | str | list[float]] | None = None,
-                 demonstrator_actions: bool = False) -> None:
+                 demonstrator_actions: bool = False, episode_ends: bool = False) -> None:
         self.path = Path(path)
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
@@ -313,6 +320,10 @@ class LearningHistoryWriter:
         self.demonstrator_actions = demonstrator_actions
         if demonstrator_actions:
             self._buffer[DEMONSTRATOR_ACTION] = np.empty((chunk_size, act_dim), DTYPES["action"])
+        self.episode_ends = episode_ends
+        if episode_ends:  # per row here; only the rows that end an episode are written (`_flush`)
+            self._buffer[EPISODE_END_KIND] = np.empty(chunk_size, np.int8)
+            self._buffer[FINAL_OBSERVATION] = np.empty((chunk_size, obs_dim), DTYPES["proprio_observation"])
         self._filled = 0
         self._flushed = 0
         self._last_step = -1
@@ -325,14 +336,17 @@ class LearningHistoryWriter:
         """Rows appended so far (written or buffered)."""
         return self._flushed + self._filled
 
-    def append(self, obs: Any, action: Any, reward: Any, step_num: Any, demonstrator_action: Any = None) -> None:
+    def append(self, obs: Any, action: Any, reward: Any, step_num: Any, demonstrator_action: Any = None,
+               episode_end: Any = None, final_observation: Any = None) -> None:
         """Append one step (1-D obs/action, scalar reward/step_num) or a batch (2-D obs/action, 1-D rest).
 
         Everything is checked before anything is buffered, so a rejected call leaves the writer
         unchanged: shapes against obs_dim/act_dim, numeric dtypes (integer step_num), finite values,
         and step_num counting 0, 1, 2, ... within episodes starting from 0 at the file's first row.
         `demonstrator_action` (shaped like `action`) is required by a writer made with
-        ``demonstrator_actions=True`` and refused by one without.
+        ``demonstrator_actions=True`` and refused by one without. A writer made with ``episode_ends=True``
+        takes per row `episode_end` (0, or TERMINATED / TRUNCATED / HISTORY_END where the row ends an
+        episode) and `final_observation` (shaped like `obs`; read only where `episode_end` is not 0).
         """
         if self._file is None:
             raise DatasetError(self.path, "append() after close() or abort(); open a new writer")
@@ -340,7 +354,13 @@ class LearningHistoryWriter:
             made = "with" if self.demonstrator_actions else "without"
             raise DatasetError(self.path, f"this writer was made {made} demonstrator_actions, so append() "
                                f"{'needs' if self.demonstrator_actions else 'takes no'} demonstrator_action")
+        if (episode_end is None or final_observation is None) == self.episode_ends:
+            made = "with" if self.episode_ends else "without"
+            raise DatasetError(self.path, f"this writer was made {made} episode_ends, so append() "
+                               f"{'needs' if self.episode_ends else 'takes no'} episode_end and final_observation")
         rows = self._checked_rows(obs, action, reward, step_num, demonstrator_action)
+        if self.episode_ends:
+            rows |= self._checked_ends(episode_end, final_observation, len(rows["step_num"]))
         n, offset = len(rows["step_num"]), 0
         while offset < n:
             take = min(n - offset, self.chunk_size - self._filled)
@@ -392,15 +412,38 @@ class LearningHistoryWriter:
             )
         return rows
 
+    def _checked_ends(self, episode_end: Any, final_observation: Any, n: int) -> dict[str, np.ndarray]:
+        kinds = np.asarray(episode_end).reshape(-1)
+        final = np.asarray(final_observation, dtype=np.float64).reshape(-1, self.obs_dim)
+        if kinds.shape != (n,) or final.shape != (n, self.obs_dim):
+            raise DatasetError(self.path, f"append() got episode_end of shape {kinds.shape} and final_observation of "
+                               f"shape {final.shape} for {n} rows")
+        if not np.isin(kinds, (0, TERMINATED, TRUNCATED, HISTORY_END)).all():
+            raise DatasetError(self.path, f"episode_end must be 0, {TERMINATED}, {TRUNCATED} or {HISTORY_END}, got "
+                               f"{sorted(set(kinds.tolist()))}")
+        if not np.isfinite(final[kinds > 0]).all():
+            raise DatasetError(self.path, "append() got NaN/inf in a final_observation; the environment diverged")
+        return {EPISODE_END_KIND: kinds.astype(np.int8), FINAL_OBSERVATION: final.astype(np.float32)}
+
     def _flush(self) -> None:
         assert self._file is not None
         start, n = self._flushed, self._filled
         group = self._file.create_group(f"{start}-{start + n - 1}")
         for key, buffer in self._buffer.items():
+            if key in (EPISODE_END_KIND, FINAL_OBSERVATION):
+                continue
             rows = buffer[:n]
             # fletcher32 needs a chunked layout; chunks of whole rows keep row-range reads cheap.
             group.create_dataset(key, data=rows, chunks=(min(n, CHECKSUM_CHUNK_ROWS), *rows.shape[1:]),
                                  fletcher32=True)
+        if self.episode_ends:
+            ends = np.flatnonzero(self._buffer[EPISODE_END_KIND][:n])
+            for key, values in ((EPISODE_END_ROW, ends.astype(np.int32)),
+                                (EPISODE_END_KIND, self._buffer[EPISODE_END_KIND][ends]),
+                                (FINAL_OBSERVATION, self._buffer[FINAL_OBSERVATION][ends])):
+                # Resizable only so that a group with no episode end can still hold a (checksummed) empty chunk.
+                group.create_dataset(key, data=values, fletcher32=True, chunks=(max(1, len(values)), *values.shape[1:]),
+                                     maxshape=(None, *values.shape[1:]))
         self._flushed += n
         self._filled = 0
 
@@ -542,6 +585,19 @@ class LearningHistory:
     def episode_lengths(self) -> np.ndarray:
         """Steps of each episode, in the order of `episode_returns`."""
         return np.diff(np.append(self.episode_starts, self.num_steps))
+
+    def episode_ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The episode ends the history records (§3.6 of docs/data-format.md): absolute rows, how each
+        episode ended (TERMINATED, TRUNCATED, HISTORY_END) and the observation after its last step; None
+        for a file that records none (older collections, the published dataset)."""
+        groups = [self._file[span.name] for span in self.layout.groups]
+        if not all(isinstance(g.get(FINAL_OBSERVATION), h5py.Dataset) for g in groups):
+            return None
+        with translate_hdf5_errors(self.path):
+            rows = [span.start + g[EPISODE_END_ROW][()] for span, g in zip(self.layout.groups, groups, strict=True)]
+            kinds = [g[EPISODE_END_KIND][()] for g in groups]
+            final = [g[FINAL_OBSERVATION][()] for g in groups]
+        return np.concatenate(rows).astype(np.int64), np.concatenate(kinds), np.concatenate(final)
 
     def read(self, start: int, stop: int, demonstrator_action: bool = False) -> dict[str, np.ndarray]:
         """Rows [start, stop) as ``observation``, ``action``, ``reward``, ``step_num`` in official dtypes,

@@ -17,7 +17,14 @@ import numpy as np
 
 from vintix.data.hdf5 import (
     DTYPES,
+    EPISODE_END_DATASETS,
+    EPISODE_END_KIND,
+    EPISODE_END_ROW,
+    FINAL_OBSERVATION,
+    HISTORY_END,
     MAX_GROUP_ROWS,
+    TERMINATED,
+    TRUNCATED,
     DatasetError,
     Layout,
     LearningHistory,
@@ -134,6 +141,8 @@ def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None =
     rewrite = "rewrite it with LearningHistoryWriter, which casts to the official dtypes"
     real_valued = ["proprio_observation", "action", "reward"] + [n for n in [layout.demonstrator_action] if n]
     previous_stop, last_step = 0, -1
+    starts: list[np.ndarray] = []  # per group, where step_num is 0 (an episode starts)
+    recorded: list[tuple[np.ndarray, np.ndarray] | None] = []  # per group, (absolute end rows, kinds) if stored
     for span in layout.groups:
         name, offset, rows = span.name, span.start, span.stop - span.start
         if rows == 0:  # the layout check already reported that its name promises rows
@@ -173,7 +182,56 @@ def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None =
             log.add("episode length", f"step_num {int(steps[first])} at row {offset + first}: an episode longer than "
                     f"the task's {episode_limit} steps; the file is another task's, or its collection broke", recollect)
         previous_stop, last_step = span.stop, int(steps[-1])
+        starts.append(offset + np.flatnonzero(steps == 0))
+        recorded.append(_recorded_ends(group, name, offset, rows, layout.obs_dim, log))
+    _check_ends(starts, recorded, layout.groups[-1].stop if layout.groups else 0, log)
     return log.messages()
+
+
+def _recorded_ends(group: h5py.Group, name: str, offset: int, rows: int, obs_dim: int | None,
+                   log: ProblemLog) -> tuple[np.ndarray, np.ndarray] | None:
+    """The episode ends a group records (§3.6), as absolute rows and kinds, checked on their own."""
+    present = [key for key in EPISODE_END_DATASETS if isinstance(group.get(key), h5py.Dataset)]
+    if not present:
+        return None
+    fix = "re-collect the history, or delete the three episode-end datasets"
+    if len(present) < len(EPISODE_END_DATASETS):
+        log.add("episode ends", f"group {name!r} has {present} but not all of {list(EPISODE_END_DATASETS)}", fix)
+        return None
+    end_rows, kinds, final = (group[key][()] for key in EPISODE_END_DATASETS)
+    if not (end_rows.ndim == kinds.ndim == 1 and len(end_rows) == len(kinds) == len(final)
+            and final.shape[1:] == (obs_dim,)):
+        log.add("episode ends", f"group {name!r}: {EPISODE_END_ROW} {end_rows.shape}, {EPISODE_END_KIND} "
+                f"{kinds.shape} and {FINAL_OBSERVATION} {final.shape} do not match (k,), (k,), (k, {obs_dim})", fix)
+        return None
+    if (len(end_rows) and (end_rows.min() < 0 or end_rows.max() >= rows)) or np.any(np.diff(end_rows) <= 0):
+        log.add("episode ends", f"group {name!r}: {EPISODE_END_ROW} must be increasing rows of the group", fix)
+        return None
+    if not np.isin(kinds, (TERMINATED, TRUNCATED, HISTORY_END)).all() or not np.isfinite(final).all():
+        log.add("episode ends", f"group {name!r}: kinds outside {TERMINATED}-{HISTORY_END} or NaN/inf final "
+                "observations", fix)
+        return None
+    return offset + end_rows, kinds
+
+
+def _check_ends(starts: list[np.ndarray], recorded: list[tuple[np.ndarray, np.ndarray] | None], total: int,
+                log: ProblemLog) -> None:
+    """Recorded episode ends, when a file has them, are in every group and are exactly its episodes' last rows."""
+    if all(r is None for r in recorded):
+        return
+    fix = "re-collect the history"
+    if any(r is None for r in recorded):
+        log.add("episode ends", "some groups record episode ends and others do not; a history records them in every "
+                "group or in none", fix)
+        return
+    rows = np.concatenate([r[0] for r in recorded if r is not None])
+    kinds = np.concatenate([r[1] for r in recorded if r is not None])
+    expected = np.append(np.concatenate(starts)[1:] - 1, total - 1) if total else np.array([], int)
+    if not np.array_equal(rows, expected):
+        log.add("episode ends", f"the recorded episode ends ({len(rows)}) are not the rows where episodes end by "
+                f"step_num ({len(expected)})", fix)
+    elif (kinds[:-1] == HISTORY_END).any():
+        log.add("episode ends", "an episode before the history's last is recorded as cut by the history's end", fix)
 
 
 @dataclass(frozen=True)

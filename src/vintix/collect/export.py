@@ -1,0 +1,127 @@
+"""Learning histories as a Minari dataset: one Minari episode per episode of every history of a task.
+
+Minari stores each episode with the observation that follows its last step (N + 1 observations for N
+steps) and whether it terminated or was truncated. A history records both only when it was collected
+with episode ends (docs/data-format.md §3.6; every `vintix collect` since they exist); older files and the
+published dataset cannot be exported, and the error says so. Each Minari episode's metadata says where
+it came from: the history file and its index, the episode's index in the history, and the noise level
+ε at the episode's first and last step (from the schedule the history records), so the learning
+histories' order and their rise from noise to expert play survive the export.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import minari
+import numpy as np
+from minari.data_collector import EpisodeBuffer
+
+from vintix.collect.noise import NoiseSchedule
+from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
+from vintix.errors import VintixError
+from vintix.tasks import action_box, find_task, gymnasium_id, make_env
+
+
+def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | None = None,
+                  description: str | None = None, author: str | None = None, author_email: str | None = None,
+                  code_permalink: str | None = None) -> minari.MinariDataset:
+    """Write the histories of one task of the dataset at `root` as the local Minari dataset `dataset_id`
+    (under ``$MINARI_DATASETS_PATH``, default ``~/.minari/datasets``); `task` picks it where the dataset
+    holds several; `author`, `author_email` and `code_permalink` go into Minari's metadata. Returns the
+    dataset, loaded back by Minari."""
+    data = _one_task(root, task)
+    if not data.history_paths:
+        raise VintixError(f"{data.task_dir}: no histories to export")
+    episodes, metadata = [], []
+    for index, path in enumerate(data.history_paths):
+        with LearningHistory(path) as history:
+            for episode, meta in _episodes(history):
+                episodes.append(episode)
+                metadata.append({"history": path.name, "history_index": index, **meta})
+    spec = find_task(data.task_name)
+    # A task of the package: Minari records its Gymnasium id, so `recover_environment` can make it. Others
+    # (your own task's env may need your code): the spaces alone.
+    env_id = gymnasium_id(spec) if spec is not None and spec.domain != "custom" else None
+    low, high = _action_bounds(data.task_name, data.act_dim)
+    with warnings.catch_warnings():
+        # Meta-World's hidden goal is a Box with equal bounds by design (see `vintix.tasks.make`).
+        warnings.filterwarnings("ignore", message=".*maximum and minimum values are equal.*")
+        dataset = minari.create_dataset_from_buffers(
+            dataset_id, episodes, env=env_id, author=author, author_email=author_email, code_permalink=code_permalink,
+            observation_space=None if env_id else gym.spaces.Box(-np.inf, np.inf, (data.obs_dim,), np.float32),
+            action_space=None if env_id else gym.spaces.Box(low, high, dtype=np.float32),
+            algorithm_name="vintix continuous noise distillation",
+            description=description or f"Learning histories of {data.task_name} from {Path(root).name}: a "
+                                       "demonstrator's actions mixed with uniform noise annealed from 1 to 0.",
+        )
+    dataset.storage.update_episode_metadata(metadata)
+    return dataset
+
+
+def _one_task(root: str | os.PathLike[str], task: str | None) -> TaskData:
+    tasks = find_tasks(root)
+    if task is not None:
+        canonical = (spec.name if (spec := find_task(task)) is not None else task)
+        tasks = [t for t in tasks if t.task_name in (task, canonical)]
+    if len(tasks) != 1:
+        names = ", ".join(t.task_name for t in find_tasks(root))
+        raise VintixError(f"{root}: a Minari dataset holds one task; "
+                          f"{'choose one with --task' if len(tasks) > 1 else f'no task {task!r} here'} ({names})")
+    return tasks[0]
+
+
+def _action_bounds(task: str, act_dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """The task's action bounds where its env can be made here, else unbounded."""
+    if find_task(task) is None:
+        return np.full(act_dim, -np.inf, np.float32), np.full(act_dim, np.inf, np.float32)
+    env = make_env(task)
+    try:
+        space = action_box(env.action_space)
+        return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+    finally:
+        env.close()
+
+
+def _episodes(history: LearningHistory) -> list[tuple[EpisodeBuffer, dict[str, Any]]]:
+    ends = history.episode_ends()
+    if ends is None:
+        raise DatasetError(history.path, "records no episode ends (final observations, terminated or truncated), "
+                           "which a Minari episode needs; re-collect it with `vintix collect`")
+    end_rows, kinds, final = ends
+    rows = history.read(0, history.num_steps)
+    epsilon = _epsilon(history)
+    episodes = []
+    start = 0
+    for i, (end, kind) in enumerate(zip(end_rows.tolist(), kinds.tolist(), strict=True)):
+        steps = end + 1 - start
+        last = np.zeros(steps, dtype=bool)
+        last[-1] = True
+        buffer = EpisodeBuffer(
+            id=None,
+            observations=np.concatenate([rows["observation"][start:end + 1], final[i][None]]),
+            actions=rows["action"][start:end + 1],
+            rewards=rows["reward"][start:end + 1].astype(np.float64),
+            terminations=last & (kind == TERMINATED),
+            truncations=last & (kind != TERMINATED),
+        )
+        meta: dict[str, Any] = {"episode_in_history": i}
+        if epsilon is not None:
+            meta |= {"epsilon_first_step": float(epsilon[start]), "epsilon_last_step": float(epsilon[end])}
+        episodes.append((buffer, meta))
+        start = end + 1
+    return episodes
+
+
+def _epsilon(history: LearningHistory) -> np.ndarray | None:
+    """The noise level of every row, from the schedule the history records (None if it records none)."""
+    try:
+        schedule = NoiseSchedule.from_recorded(history.attrs)
+    except (KeyError, TypeError, ValueError):
+        return None
+    steps = int(history.attrs.get("steps", history.num_steps))
+    return schedule.epsilon(np.arange(history.num_steps), steps)
