@@ -18,7 +18,6 @@ import threading
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import cache
 from typing import Any, TypeVar, cast
 
 import gymnasium as gym
@@ -30,7 +29,7 @@ from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix, normalize_inputs
-from vintix.tasks import action_box, find_task, get_task, make_env
+from vintix.tasks import action_bounds, find_task, get_task
 from vintix.tasks.layouts import ObsLayout
 from vintix.train.checkpoint import intact_alternative_hint
 
@@ -67,17 +66,6 @@ class AgentTask:
     def env_obs_dim(self, model: Vintix) -> int:
         """Dimension of the observations the env gives (and `Agent.act` takes)."""
         return self.obs_layout.env_dim if self.obs_layout is not None else model.groups[self.group].obs_dim
-
-
-@cache
-def _registry_action_bounds(task: str) -> tuple[np.ndarray, np.ndarray]:
-    # Physics variations leave the action space alone, so one env per task name tells the bounds.
-    env = make_env(task)
-    try:
-        space = action_box(env.action_space)
-        return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
-    finally:
-        env.close()
 
 
 def _checkpoint_task_index(model: Vintix, task: str) -> int | None:
@@ -133,7 +121,7 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
     if action_space is not None:
         low, high = np.asarray(action_space.low, np.float32), np.asarray(action_space.high, np.float32)
     else:
-        low, high = _registry_action_bounds(task)
+        low, high = action_bounds(task)
     act_dim = model.groups[group].act_dim
     if low.shape != (act_dim,):
         raise AgentInputError(

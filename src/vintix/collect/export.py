@@ -24,7 +24,7 @@ from minari.data_collector import EpisodeBuffer
 from vintix.collect.noise import NoiseSchedule
 from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
 from vintix.errors import VintixError
-from vintix.tasks import action_box, find_task, gymnasium_id, make_env
+from vintix.tasks import action_bounds, find_task, gymnasium_id
 
 
 def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | None = None,
@@ -79,12 +79,7 @@ def _action_bounds(task: str, act_dim: int) -> tuple[np.ndarray, np.ndarray]:
     """The task's action bounds where its env can be made here, else unbounded."""
     if find_task(task) is None:
         return np.full(act_dim, -np.inf, np.float32), np.full(act_dim, np.inf, np.float32)
-    env = make_env(task)
-    try:
-        space = action_box(env.action_space)
-        return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
-    finally:
-        env.close()
+    return action_bounds(task)
 
 
 def _episodes(history: LearningHistory) -> list[tuple[EpisodeBuffer, dict[str, Any]]]:

@@ -1,6 +1,6 @@
 """Stage 1 of the pipeline: the task registry and the environment factory."""
 
-from vintix.tasks.make import action_box, gymnasium_id, make_env, register_gymnasium_envs
+from vintix.tasks.make import action_bounds, action_box, gymnasium_id, make_env, register_gymnasium_envs
 from vintix.tasks.registry import DOMAINS, ReferenceScore, TaskSpec, find_task, get_task, list_tasks, resolve_tasks
 
 register_gymnasium_envs()
@@ -9,6 +9,7 @@ __all__ = [
     "DOMAINS",
     "ReferenceScore",
     "TaskSpec",
+    "action_bounds",
     "action_box",
     "find_task",
     "get_task",

@@ -10,9 +10,11 @@ from __future__ import annotations
 import inspect
 import warnings
 from collections.abc import Callable
+from functools import cache
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from vintix.errors import MissingDependencyError, UnsupportedOptionError
 from vintix.tasks.registry import TaskSpec, builtin_tasks, get_task
@@ -156,3 +158,15 @@ def action_box(space: gym.Space) -> gym.spaces.Box:
     if not isinstance(space, gym.spaces.Box):
         raise TypeError(f"expected a Box action space (every vintix task is continuous control), got {space}")
     return space
+
+
+@cache
+def action_bounds(task: str) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) float32 action bounds of `task`'s env, read off one env (physics variations and seeds
+    leave the action space alone)."""
+    env = make_env(task)
+    try:
+        space = action_box(env.action_space)
+        return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+    finally:
+        env.close()
