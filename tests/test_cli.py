@@ -225,3 +225,16 @@ def test_an_output_folder_holding_another_kind_of_output_is_refused(tmp_path, ho
     output = " ".join(result.output.split())
     assert result.exit_code == 2 and "already holds" in output and f"writing {writes} into it" in output, output
     assert sorted(folder.rglob("*")) == before  # nothing written
+
+
+def test_a_full_disk_ends_in_one_line_that_says_what_to_do(tmp_path, monkeypatch):
+    import errno
+
+    def disk_full(path, text):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr("vintix.cli.atomic_write_text", disk_full)  # the disk filling up as the table is written
+    result = runner.invoke(app, ["check-envs", "point-goal-v1", "--episodes", "1", "--out", str(tmp_path / "t.csv")])
+    output = " ".join(result.output.split())  # rich wraps long lines
+    assert result.exit_code == 2 and "Traceback" not in output
+    assert "No space left on device" in output and "the disk is full: free space or write elsewhere" in output

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import errno
 import importlib.util
 import io
 import json
@@ -58,9 +59,22 @@ _RAY_HELP = ("spread the work over a Ray cluster: 'auto' (the running one, else 
 console = Console(width=None if sys.stdout.isatty() else 160)
 
 
+_OS_ERROR_FIXES = {
+    errno.ENOSPC: "the disk is full: free space or write elsewhere (--out); finished files are kept, and collect "
+                  "and train resume from them when re-run",
+    errno.EDQUOT: "the disk quota is used up: free space or write elsewhere (--out)",
+    errno.EROFS: "the file system is read-only: write elsewhere (--out)",
+    errno.EACCES: "no permission: write elsewhere (--out) or fix the folder's permissions",
+    errno.EPERM: "not permitted: write elsewhere (--out) or fix the folder's permissions",
+}
+
+
 def _fail(error: Exception) -> typer.Exit:
+    message = str(error)
+    if isinstance(error, OSError) and error.errno in _OS_ERROR_FIXES:
+        message += f"; {_OS_ERROR_FIXES[error.errno]}"
     # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup.
-    console.print(f"[red]error:[/red] {escape(str(error))}")
+    console.print(f"[red]error:[/red] {escape(message)}")
     return typer.Exit(code=2)
 
 
