@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import track
 from rich.table import Table
+from tqdm import tqdm
 from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
@@ -186,7 +186,7 @@ def check_envs(
             check_output_path(out)  # before the rollouts, not after them
     except VintixError as error:
         raise _fail(error) from None
-    results = [random_policy_returns(t.name, episodes, seed) for t in track(specs, description="random rollouts")]
+    results = [random_policy_returns(t.name, episodes, seed) for t in tqdm(specs, desc="random rollouts", disable=None)]
     table = Table(title=f"uniform-random policy, {episodes} episodes, seed {seed}")
     for column in ("task", "ours", "paper", "z", "env steps/s"):
         table.add_column(column, justify="left" if column == "task" else "right")
@@ -392,7 +392,7 @@ def demonstrator_eval(
     command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"
     command += f" --weights {weights}" if weights else ""
     rows = []
-    for spec, demonstrator in track(list(zip(specs, demonstrators, strict=True)), description="scoring"):
+    for spec, demonstrator in tqdm(list(zip(specs, demonstrators, strict=True)), desc="scoring", disable=None):
         line = command.format(task=spec.name)
         rows += [measure(spec.name, "demonstrator", demonstrator, episodes, seed, line),
                  measure(spec.name, "random", UniformRandomPolicy(), episodes, seed, line)]
@@ -428,7 +428,7 @@ def demonstrator_goal_blind(
         specs = resolve_tasks(task)
         command = f"vintix demonstrator goal-blind --task {{task}} --seeds {seeds} --first-seed {first_seed}"
         results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name))
-                   for spec in track(specs, description="goal-blind baselines", console=console)]
+                   for spec in tqdm(specs, desc="goal-blind baselines", disable=None)]
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     table = Table(title=f"success over {seeds} episodes (env seeds {first_seed}..{first_seed + seeds - 1})")
@@ -542,7 +542,7 @@ def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root
     if not folders:
         raise _fail(DatasetError(root, "no <domain>/<task_dir>/ folders found; point to the dataset root "
                                        "(layout: docs/data-format.md)"))
-    problems = [p for folder in track(folders, description="validating")
+    problems = [p for folder in tqdm(folders, desc="validating", disable=None)
                 for p in validate_task(folder, registry_dims, registry_episode_limit)]
     for problem in problems:
         console.print(f"[red]✗[/red] {problem}", highlight=False)
@@ -716,8 +716,8 @@ def import_official_command(
     from vintix.model.official import RELEASE_SHA256, import_official
 
     try:
-        with console.status(f"importing {snapshot} (reading and checking the weights)"):
-            result = import_official(snapshot, out)
+        console.print(f"importing {snapshot}: reading and checking its weights", highlight=False)
+        result = import_official(snapshot, out)
     except (VintixError, OSError) as error:
         raise _fail(error) from None
     if result.known_release:
@@ -918,7 +918,6 @@ def eval_command(
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
-    from rich.progress import Progress
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.agent.pretrained import checkpoint_name
@@ -933,8 +932,7 @@ def eval_command(
                             prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input)
         resolved = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(resolved, device)
-        with Progress(console=console) as progress:
-            rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, progress, ray)
+        rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, True, ray)
         summary = summarize(rows, reference)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None

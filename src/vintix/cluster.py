@@ -10,11 +10,10 @@ first use, never when vintix is imported.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import nullcontext
 from types import ModuleType
 from typing import Any, TypeVar
 
-from rich.progress import Progress
+from tqdm import tqdm
 
 from vintix.errors import MissingDependencyError
 
@@ -51,21 +50,20 @@ def connect(address: str) -> None:
 
 
 def map_tasks(function: Callable[..., R], calls: Sequence[tuple[Any, ...]], description: str,
-              progress: Progress | None = None) -> Iterator[tuple[int, R]]:
+              progress: bool = True) -> Iterator[tuple[int, R]]:
     """``function(*call)`` for every call, each a Ray task of one CPU on the connected cluster; yields
     ``(index of the call, result)`` in the order tasks finish, so callers that need the calls' order
-    restore it by index. A bar (added to `progress`, or shown on its own) advances as tasks finish.
+    restore it by index. With `progress`, a bar (on a terminal) advances as tasks finish.
     A task's error is raised as the error it raised in the worker; tasks still pending are cancelled."""
     ray = import_ray()
     remote = ray.remote(function).options(num_cpus=1, runtime_env=WORKER_ENV)
     pending = {remote.remote(*call): index for index, call in enumerate(calls)}
-    with nullcontext(progress) if progress is not None else Progress() as shown:
-        bar = shown.add_task(description, total=len(pending))
+    with tqdm(total=len(pending), desc=description, disable=None if progress else True) as bar:
         try:
             while pending:
                 [ready], _ = ray.wait(list(pending), num_returns=1)
                 index, result = pending.pop(ready), _result(ray, ready)
-                shown.advance(bar)
+                bar.update(1)
                 yield index, result
         finally:
             for ref in pending:

@@ -27,7 +27,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 import torch
-from rich.progress import Progress
+from tqdm import tqdm
 
 from vintix import cluster
 from vintix.agent import Agent
@@ -217,7 +217,7 @@ class RewardFeed:
 
 
 def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], shots: int,
-               progress: Progress | None = None) -> list[list[Episode]]:
+               progress: bool = False) -> list[list[Episode]]:
     """Step `envs` (the agent already reset for them) until each has finished `shots` episodes; an
     env that has is dropped from the agent's batch (`Agent.keep`). `feeds[i]` turns env i's rewards
     into the ones the agent is fed; episode returns and success are the env's own."""
@@ -227,7 +227,7 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
     returns, lengths = np.zeros(n), np.zeros(n, dtype=int)
     success: list[float | None] = [None] * n
     episodes: list[list[Episode]] = [[] for _ in envs]
-    bar = progress.add_task("episodes", total=n * shots) if progress else None
+    bar = tqdm(total=n * shots, desc="episodes", disable=None if progress else True, leave=False)
     active = list(range(n))  # the envs still playing, in the agent's batch order
     while active:
         actions = agent.act([observations[i] for i in active], rewards[active], starts[active])
@@ -239,8 +239,7 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
                 success[i] = max(success[i] or 0.0, float(info["success"]))
             if terminated or truncated:
                 episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i]))
-                if progress is not None and bar is not None:
-                    progress.advance(bar)
+                bar.update(1)
                 observation, _ = envs[i].reset()
                 feeds[i].new_episode()
                 returns[i], lengths[i], success[i], rewards[i], starts[i] = 0.0, 0, None, 0.0, True
@@ -252,11 +251,12 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
             active = [active[j] for j in playing]
             if active:
                 agent.keep(playing)
+    bar.close()
     return episodes
 
 
 def run_episodes(
-    agent: Agent, config: EvalConfig, specs: Sequence[TaskSpec], progress: Progress | None = None,
+    agent: Agent, config: EvalConfig, specs: Sequence[TaskSpec], progress: bool = False,
     ray: str | None = None, checkpoint: str = "",
 ) -> list[dict[str, Any]]:
     """Every (task, seed) run of `config` for `specs`: one result row per episode. Runs go in batches of
@@ -289,7 +289,7 @@ def _run_batch_in_worker(checkpoint: str, threads: int, config: EvalConfig, batc
 
 
 def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]], prompt_steps: int,
-              progress: Progress | None = None) -> list[dict[str, Any]]:
+              progress: bool = False) -> list[dict[str, Any]]:
     """The (task, seed) runs of `batch`, stepped together through `agent`: one result row per episode."""
     variation = ",".join(f"{k}={v:g}" for k, v in sorted(config.variation.items()))
     prompts = None
@@ -359,7 +359,7 @@ def default_label(checkpoint: str, reward_input: str = "true") -> str:
 
 def evaluate(
     agent: Agent, config: EvalConfig, out: Path | None = None, checkpoint: str = "", label: str | None = None,
-    progress: Progress | None = None, ray: str | None = None,
+    progress: bool = False, ray: str | None = None,
 ) -> tuple[list[dict[str, Any]], list[str]]:
     """Run `config` with `agent` (on the Ray cluster at address `ray` if given, where workers load
     `checkpoint`: see `run_episodes`); write the results under `out` if given. Returns the episode rows
