@@ -229,8 +229,8 @@ def test_a_gaussian_policy_samples_reproducibly_from_its_seed():
 def test_a_context_or_batch_beyond_the_machines_memory_is_refused_before_allocating(tmp_path):
     model = tiny_model()
     save_pretrained(model, tmp_path)
-    meta = json.loads((tmp_path / "model.json").read_text())
-    (tmp_path / "model.json").write_text(json.dumps({**meta, "config": {**meta["config"], "context_len": 10**9}}))
+    meta = json.loads((tmp_path / "config.json").read_text())
+    (tmp_path / "config.json").write_text(json.dumps({**meta, "config": {**meta["config"], "context_len": 10**9}}))
     agent = Agent.from_pretrained(tmp_path)  # the weights do not depend on the context's length
     with pytest.raises(OutOfMemoryError, match="a KV cache for 1 envs over a 1000000000-step context needs"):
         agent.reset(["reach-v3"])

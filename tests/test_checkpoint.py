@@ -19,11 +19,42 @@ def test_save_then_load_gives_identical_outputs_and_keeps_extra(tmp_path):
         batch = make_batch(group, task, model)
         assert torch.equal(model(**batch), loaded(**batch))
     assert read_metadata(tmp_path / "ckpt")["extra"] == {"step": 7}
-    assert sorted(p.name for p in (tmp_path / "ckpt").iterdir()) == ["model.json", "model.safetensors"]
+    # The Hugging Face Hub's layout, written by its mixin: pushable as it is
+    assert sorted(p.name for p in (tmp_path / "ckpt").iterdir()) == ["README.md", "config.json", "model.safetensors"]
+
+
+def test_the_hub_mixin_saves_a_model_card_and_loads_a_local_folder_strictly(tmp_path):
+    from vintix.model import Vintix
+
+    model = make_model()
+    extra = {"step": 1200, "tokens": 4_000_000, "trained_tasks": ["a1"], "dataset_fingerprint": "abc",
+             "in_context_score": 0.275, "select_metric": "success", "select_tasks": ["a1"], "reward_use_gap": 0.2,
+             "train_config": {"lr": 0.001}}
+    save_pretrained(model, tmp_path / "ckpt", extra=extra, details="## How it was made\n\nvintix train ...")
+    card = (tmp_path / "ckpt" / "README.md").read_text()
+    assert card.startswith("---\n") and "library_name: vintix" in card and "reinforcement-learning" in card
+    assert "step 1,200, 4,000,000 tokens on a1" in card and "success 0.275" in card and "## How it was made" in card
+    loaded = Vintix.from_pretrained(str(tmp_path / "ckpt"))  # the library's method, no download for a folder
+    batch = make_batch("A", "a1", model)
+    assert torch.equal(model(**batch), loaded(**batch)) and not loaded.training
+    weights = tmp_path / "ckpt" / "model.safetensors"
+    weights.write_bytes(weights.read_bytes()[:-100])  # strict: a damaged file is an error, not a partial load
+    with pytest.raises(CheckpointError, match="truncated or damaged"):
+        Vintix.from_pretrained(str(tmp_path / "ckpt"))
+
+
+def test_a_checkpoint_written_before_the_hub_layout_still_loads(tmp_path):
+    model = make_model()
+    save_pretrained(model, tmp_path, extra={"step": 3})
+    (tmp_path / "config.json").rename(tmp_path / "model.json")  # the earlier layout: model.json, no card
+    (tmp_path / "README.md").unlink()
+    batch = make_batch("A", "a1", model)
+    assert torch.equal(load_pretrained(tmp_path)(**batch), model(**batch))
+    assert read_metadata(tmp_path)["extra"] == {"step": 3}
 
 
 def test_missing_directory_or_weights_is_a_clear_error(tmp_path):
-    with pytest.raises(CheckpointError, match="no model.json"):
+    with pytest.raises(CheckpointError, match="no config.json"):
         load_pretrained(tmp_path)
     save_pretrained(make_model(), tmp_path)
     (tmp_path / "model.safetensors").unlink()
@@ -58,19 +89,19 @@ def test_weights_of_another_config_are_refused(tmp_path):
 
 def test_unknown_config_field_is_refused(tmp_path):
     save_pretrained(make_model(), tmp_path)
-    meta = json.loads((tmp_path / "model.json").read_text())
+    meta = json.loads((tmp_path / "config.json").read_text())
     meta["config"]["rotary"] = True
-    (tmp_path / "model.json").write_text(json.dumps(meta))
+    (tmp_path / "config.json").write_text(json.dumps(meta))
     with pytest.raises(CheckpointError, match="rotary"):
         load_pretrained(tmp_path)
 
 
 def test_a_hand_edited_model_json_is_named_not_a_traceback(tmp_path):
     save_pretrained(make_model(), tmp_path)
-    meta = json.loads((tmp_path / "model.json").read_text())
+    meta = json.loads((tmp_path / "config.json").read_text())
     for broken in ({**meta, "groups": [{"x": 1}]}, {**meta, "config": {**meta["config"], "n_heads": "2"}}):
-        (tmp_path / "model.json").write_text(json.dumps(broken))
-        with pytest.raises(CheckpointError, match="model.json: .*(does not describe a model|n_heads must be int)"):
+        (tmp_path / "config.json").write_text(json.dumps(broken))
+        with pytest.raises(CheckpointError, match="config.json: .*(does not describe a model|n_heads must be int)"):
             load_pretrained(tmp_path)
 
 
@@ -82,8 +113,18 @@ def test_a_device_this_machine_lacks_is_named_before_loading(tmp_path):
 
 def test_a_model_json_that_asks_for_more_memory_than_the_machine_has_is_refused_before_allocating(tmp_path):
     save_pretrained(make_model(), tmp_path)
-    meta = json.loads((tmp_path / "model.json").read_text())
-    (tmp_path / "model.json").write_text(json.dumps({**meta, "config": {**meta["config"], "mlp_dim": 10**9}}))
+    meta = json.loads((tmp_path / "config.json").read_text())
+    (tmp_path / "config.json").write_text(json.dumps({**meta, "config": {**meta["config"], "mlp_dim": 10**9}}))
     with pytest.raises(OutOfMemoryError,
                        match="the model this checkpoint describes needs [0-9,.]+ GiB; this machine has"):
         load_pretrained(tmp_path)
+
+
+def test_a_model_saved_by_the_mixin_alone_keeps_what_its_checkpoint_recorded(tmp_path):
+    """``push_to_hub`` saves through the mixin's own save_pretrained: the folder must still be complete."""
+    save_pretrained(make_model(), tmp_path / "a", extra={"step": 9})
+    loaded = load_pretrained(tmp_path / "a")
+    loaded.save_pretrained(tmp_path / "b")  # the library's method, as push_to_hub calls it
+    assert read_metadata(tmp_path / "b")["extra"] == {"step": 9}
+    batch = make_batch("A", "a1", loaded)
+    assert torch.equal(load_pretrained(tmp_path / "b")(**batch), loaded(**batch))

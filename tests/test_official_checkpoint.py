@@ -376,7 +376,7 @@ def test_a_renamed_missing_reshaped_or_extra_key_is_refused_by_name(tmp_path, da
     write_release(tmp_path / "release", mutate=damage)
     with pytest.raises(OfficialFormatError, match="does not fit") as error:
         import_official(tmp_path / "release", tmp_path / "out")
-    assert named in str(error.value) and not (tmp_path / "out" / "model.json").exists()
+    assert named in str(error.value) and not (tmp_path / "out" / "config.json").exists()
 
 
 def test_a_model_field_we_do_not_implement_is_refused_by_name(tmp_path):
@@ -452,7 +452,7 @@ def test_from_pretrained_imports_a_raw_snapshot_into_the_user_cache(release, tmp
     agent = Agent.from_pretrained(release[0])
     assert agent.model.config.shared_padding and "reach-v3" in [n.task for n in agent.model.task_norms]
     cached = list((tmp_path / "user-cache" / "vintix" / "official").iterdir())
-    assert len(cached) == 1 and (cached[0] / "model.json").is_file()
+    assert len(cached) == 1 and (cached[0] / "config.json").is_file()
     Agent.from_pretrained(release[0])  # a second load reuses the import
     assert list((tmp_path / "user-cache" / "vintix" / "official").iterdir()) == cached
 

@@ -709,8 +709,8 @@ _SNAPSHOT_HELP = ("the authors' release snapshot folder (model.pth, config.json,
 @app.command("import-official")
 def import_official_command(
     snapshot: Annotated[Path, typer.Argument(help=_SNAPSHOT_HELP)],
-    out: Annotated[Path, typer.Option(help="folder for our checkpoint (model.safetensors + model.json)")] = Path(
-        "vintix-official"),
+    out: Annotated[Path, typer.Option(
+        help="folder for our checkpoint (model.safetensors, config.json, README.md)")] = Path("vintix-official"),
 ) -> None:
     """Import the authors' released Vintix model as one of our checkpoints (nothing is downloaded)."""
     from vintix.model.official import RELEASE_SHA256, import_official
@@ -887,9 +887,9 @@ def bench_infer(
 
 @app.command("eval")
 def eval_command(
-    checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (model.json + model.safetensors), a training "
-                                             "run (its best checkpoint, else its newest), or a shipped model: "
-                                             "cpu-suite or point-goal")],
+    checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (config.json + model.safetensors), a "
+                                             "training run (its best checkpoint, else its newest), a shipped model "
+                                             "(cpu-suite, icrl-reach, point-goal) or a release snapshot")],
     tasks: Annotated[list[str], typer.Option(
         help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),

@@ -1,6 +1,7 @@
 """Models shipped inside the package, loadable by name: ``Agent.from_pretrained("cpu-suite")`` or
-``vintix eval --checkpoint cpu-suite``. Each lives in ``agent/pretrained/<name>/`` beside a
-``TRAINING.md`` that gives the commands that made it and what they measured."""
+``vintix eval --checkpoint cpu-suite``. Each lives in ``agent/pretrained/<name>/`` in the Hub's layout
+(config.json, model.safetensors, a README.md model card) beside a ``TRAINING.md`` that gives the commands
+that made it and what they measured; the card carries it too (``scripts/resave_shipped_models.py``)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import os
 from importlib import resources
 from pathlib import Path
 
-from vintix.model.checkpoint import CONFIG_FILE, CheckpointError
+from vintix.model.checkpoint import CheckpointError, is_checkpoint
 from vintix.model.official import WEIGHTS, import_official, is_official_snapshot
 from vintix.train.checkpoint import model_directory
 from vintix.userdirs import user_cache_dir
@@ -22,7 +23,7 @@ def _shipped_root() -> Path:
 def shipped_models() -> list[str]:
     """Names of the models the package ships."""
     root = _shipped_root()
-    return sorted(p.name for p in root.iterdir() if (p / CONFIG_FILE).is_file()) if root.is_dir() else []
+    return sorted(p.name for p in root.iterdir() if is_checkpoint(p)) if root.is_dir() else []
 
 
 def imported_snapshot(snapshot: Path) -> Path:
@@ -32,7 +33,7 @@ def imported_snapshot(snapshot: Path) -> Path:
     stat = weights.stat()
     key = hashlib.sha256(f"{weights}|{stat.st_size}|{stat.st_mtime_ns}".encode()).hexdigest()[:16]
     directory = user_cache_dir("official") / key
-    if not (directory / CONFIG_FILE).is_file():
+    if not is_checkpoint(directory):
         import_official(snapshot, directory)
     return directory
 
@@ -47,7 +48,7 @@ def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
     if path.exists():
         return model_directory(path)
     shipped = _shipped_root() / str(name_or_path)
-    if (shipped / CONFIG_FILE).is_file():
+    if is_checkpoint(shipped):
         return shipped
     raise CheckpointError(f"{name_or_path}: no such checkpoint or run folder, and no shipped model of that name "
                           f"(shipped: {', '.join(shipped_models()) or 'none'})")

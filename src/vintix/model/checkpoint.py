@@ -1,10 +1,15 @@
-"""Model checkpoints: ``model.safetensors`` (weights) + ``model.json`` (config, groups, task norms).
+"""Model checkpoints, in the Hugging Face Hub's layout: ``model.safetensors`` (weights), ``config.json``
+(config, groups, task norms) and ``README.md`` (a model card), written by huggingface_hub's mixin
+(`Vintix.save_pretrained`), so a folder can be pushed to the Hub as it is (``model.push_to_hub``).
 
 A checkpoint directory is self-contained: it loads on a machine that has neither the dataset nor
 the training code's state, which is what inference and evaluation need. Weights are never pickled.
-Both files are written atomically; ``model.json`` is written last, so a directory with a
-``model.json`` always has the weights that go with it. ``extra`` carries whatever the writer wants
-to keep beside the model (training step, dataset fingerprint, ...) and comes back unchanged.
+The weights are written atomically, then ``config.json``, atomically too, so a directory with a
+``config.json`` has the weights that go with it. Training writes a whole checkpoint directory aside
+and renames it into place. ``extra`` carries whatever the
+writer wants to keep beside the model (training step, dataset fingerprint, ...) and comes back
+unchanged. Folders written before this layout hold ``model.json`` instead of ``config.json``; they load
+the same way.
 """
 
 from __future__ import annotations
@@ -22,12 +27,15 @@ from safetensors.torch import load_file, save_file
 from vintix.atomic import atomic_path, atomic_write_text
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
-from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix
+from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters
 from vintix.tasks.custom import custom_specs, register_specs
 from vintix.tasks.layouts import ObsLayout
 
 WEIGHTS_FILE = "model.safetensors"
-CONFIG_FILE = "model.json"
+CONFIG_FILE = "config.json"
+LEGACY_CONFIG_FILE = "model.json"
+"""What `CONFIG_FILE` was called before checkpoints took the Hub's layout; still read."""
+MODEL_CARD_FILE = "README.md"
 FORMAT_VERSION = 1
 
 
@@ -72,23 +80,74 @@ def task_norm_from_json(data: dict[str, Any]) -> TaskNorm:
                        ObsLayout(int(layout["env_dim"]), tuple(int(c) for c in layout["channels"]))})
 
 
-def save_pretrained(model: Vintix, directory: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> Path:
-    """Write `model` to `directory` (created if needed); returns the directory."""
+def save_pretrained(model: Vintix, directory: str | os.PathLike[str], extra: dict[str, Any] | None = None,
+                    details: str = "", name: str = "A Vintix model") -> Path:
+    """Write `model` to `directory` (created if needed) through huggingface_hub's mixin: weights,
+    ``config.json`` with `extra`, and a model card titled `name` that shows the training facts in `extra`
+    and `details` (markdown, e.g. how a shipped model was made). Returns the directory."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
+    for stale in (MODEL_CARD_FILE, LEGACY_CONFIG_FILE):  # the mixin keeps an existing card; rewrite it
+        (directory / stale).unlink(missing_ok=True)
+    model.checkpoint_extra = dict(extra or {})
+    model.save_pretrained(directory, model_card_kwargs=model_card_fields(model, model.checkpoint_extra, details, name))
+    return directory
+
+
+def write_checkpoint(model: Vintix, directory: Path) -> None:
+    """`model`'s weights, then its ``config.json`` (with ``model.checkpoint_extra``), each atomically, so a
+    folder whose config.json is there has the weights that go with it (`Vintix._save_pretrained`)."""
+    directory = Path(directory)
     # safetensors refuses tensors that share memory or are not contiguous; a state_dict has neither.
     weights = {name: tensor.detach().cpu().contiguous() for name, tensor in model.state_dict().items()}
     with atomic_path(directory / WEIGHTS_FILE) as temporary:
         save_file(weights, str(temporary), metadata={"format": "pt"})
-    atomic_write_text(directory / CONFIG_FILE, json.dumps(model_metadata(model, extra), indent=1) + "\n")
-    return directory
+    metadata = model_metadata(model, model.checkpoint_extra)
+    atomic_write_text(directory / CONFIG_FILE, json.dumps(metadata, indent=1) + "\n")
+
+
+def model_card_fields(model: Vintix, extra: dict[str, Any], details: str, name: str) -> dict[str, Any]:
+    """What `vintix.model.model.MODEL_CARD` shows: the model's size and tasks, and how it was trained."""
+    lines = []
+    if "step" in extra:
+        lines.append(f"Training: step {extra['step']:,}, {extra.get('tokens', 0):,} tokens on "
+                     f"{', '.join(extra.get('trained_tasks', [])) or 'its dataset'} (dataset fingerprint "
+                     f"{extra.get('dataset_fingerprint', 'unknown')}).")
+    if extra.get("in_context_score") is not None:
+        lines.append(f"Kept as the run's best in context: {extra.get('select_metric', 'score')} "
+                     f"{extra['in_context_score']:.3f} on unseen seeds of {', '.join(extra.get('select_tasks', []))} "
+                     f"(reward-use gap {extra.get('reward_use_gap')}).")
+    if "official" in extra:
+        lines.append(f"Imported from the authors' release (model.pth sha256 {extra['official'].get('sha256')}).")
+    if "train_config" in extra:
+        config = json.dumps(extra["train_config"], indent=1, default=str)
+        lines.append(f"The training config (`vintix train --config FILE` with these fields):\n\n```json\n{config}\n```")
+    return {"name": name, "parameters": f"{count_parameters(model):,}", "context_len": model.config.context_len,
+            "n_groups": len(model.groups), "n_tasks": len(model.task_norms),
+            "training": "## Training\n\n" + "\n\n".join(lines) if lines else "", "details": details}
+
+
+def checkpoint_config_path(directory: str | os.PathLike[str]) -> Path | None:
+    """The JSON half of the checkpoint in `directory`, in either layout; None if it holds no checkpoint."""
+    directory = Path(directory)
+    current, legacy = directory / CONFIG_FILE, directory / LEGACY_CONFIG_FILE
+    # An official release snapshot holds a config.json too (its training config), beside its model.pth.
+    if current.is_file() and not (directory / "model.pth").exists():
+        return current
+    return legacy if legacy.is_file() else None
+
+
+def is_checkpoint(directory: str | os.PathLike[str]) -> bool:
+    """Whether `directory` holds one of our checkpoints (its JSON half, in either layout)."""
+    return checkpoint_config_path(directory) is not None
 
 
 def read_metadata(directory: str | os.PathLike[str]) -> dict[str, Any]:
     """The JSON half of a checkpoint, checked for the keys `load_pretrained` needs."""
-    path = Path(directory) / CONFIG_FILE
-    if not path.is_file():
+    found = checkpoint_config_path(directory)
+    if found is None:
         raise CheckpointError(f"{directory}: no {CONFIG_FILE}; is this a checkpoint directory written by vintix?")
+    path = found
     try:
         meta = json.loads(path.read_text())
     except json.JSONDecodeError as error:
@@ -115,7 +174,7 @@ def build_model(meta: dict[str, Any]) -> Vintix:
         # Twice the model: it and the weights read into it.
         return build_within_memory(lambda: Vintix(config, groups, norms), 2, "the model this checkpoint describes",
                                    "Its config is damaged, or it needs a machine with more memory")
-    except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged model.json
+    except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged config.json
         raise CheckpointError(f"does not describe a model this vintix can build ({error}); the checkpoint is "
                               "damaged or not vintix's") from error
 
@@ -166,4 +225,5 @@ def load_pretrained(directory: str | os.PathLike[str], device: str | torch.devic
             "training run diverged before this checkpoint: use an earlier one"
         )
     model.load_state_dict(weights)
+    model.checkpoint_extra = dict(meta.get("extra") or {})
     return model.to(device).eval()

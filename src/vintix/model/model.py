@@ -14,11 +14,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+from huggingface_hub import PyTorchModelHubMixin
 from torch import nn
 
 from vintix.errors import UnknownTaskError, VintixError
@@ -372,12 +374,42 @@ def normalize_inputs(obs: torch.Tensor, reward: torch.Tensor, mean: torch.Tensor
 # The model
 
 
-class Vintix(nn.Module):
+MODEL_CARD = """---
+{{ card_data }}
+---
+
+# {{ name }}
+
+A [Vintix](https://arxiv.org/abs/2501.19400) action model: a causal ALiBi transformer over multi-episode
+learning histories that improves in context, episode after episode, from the rewards it earns. Saved by
+vintix: {{ parameters }} parameters, a {{ context_len }}-step context, {{ n_groups }} encoder group(s),
+statistics for {{ n_tasks }} task(s).
+
+```python
+import vintix
+agent = vintix.Agent.from_pretrained("path/to/this/folder")   # or: vintix eval --checkpoint path/to/this/folder
+```
+
+{{ training }}
+
+{{ details }}
+"""
+"""The model card `Vintix.save_pretrained` writes as ``README.md`` (huggingface_hub's mixin renders it)."""
+
+
+class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_template=MODEL_CARD,
+             paper_url="https://arxiv.org/abs/2501.19400",
+             tags=["reinforcement-learning", "in-context-learning", "algorithm-distillation"]):
     """Next-action model over multi-episode learning histories.
 
     Training: ``forward(group, task_idx, obs, prev_action, prev_reward, step_num)`` with every
     sequence of the batch from ``group``. To mix groups in one batch, ``embed`` each group's
     sub-batch, concatenate along the batch dim, run ``backbone`` once, split, and ``head`` each part.
+
+    Saving and loading go through huggingface_hub's mixin: ``save_pretrained(folder)`` writes
+    ``config.json``, ``model.safetensors`` and a ``README.md`` model card (use
+    `vintix.model.save_pretrained` to record training facts beside the model), ``from_pretrained(folder)``
+    loads a local folder strictly, and ``push_to_hub`` is the library's own.
     """
 
     # Buffers (set by register_buffer below), declared for the type checker: nn.Module's attribute
@@ -395,6 +427,8 @@ class Vintix(nn.Module):
         if len(self.groups) != len(groups):
             raise ValueError("group names must be unique")
         self.task_norms = list(task_norms)
+        self.checkpoint_extra: dict[str, Any] = {}
+        """What a checkpoint of this model keeps beside it (training step, dataset fingerprint, ...)"""
         self._task_index = {t.task: i for i, t in enumerate(self.task_norms)}
         if len(self._task_index) != len(self.task_norms):
             raise ValueError("task names in task_norms must be unique")
@@ -466,6 +500,30 @@ class Vintix(nn.Module):
         elif isinstance(module, nn.LayerNorm):
             nn.init.ones_(module.weight)
             nn.init.zeros_(module.bias)
+
+    def _save_pretrained(self, save_directory: Path) -> None:
+        """The mixin's hook (``save_pretrained``, ``push_to_hub``): the weights, then ``config.json`` with
+        `checkpoint_extra`, each atomically; the mixin adds the model card."""
+        from vintix.model.checkpoint import write_checkpoint
+
+        write_checkpoint(self, save_directory)
+
+    @classmethod
+    def _from_pretrained(cls, *, model_id: str, revision: str | None = None, cache_dir: str | Path | None = None,
+                         force_download: bool = False, local_files_only: bool = False, token: str | bool | None = None,
+                         map_location: str = "cpu", **model_kwargs: Any) -> Vintix:
+        """The mixin's hook: a local folder is loaded strictly (`vintix.model.load_pretrained`); a Hub id is
+        downloaded by huggingface_hub first, only when a user asks for one."""
+        from vintix.model.checkpoint import load_pretrained
+
+        folder = Path(model_id)
+        if not folder.is_dir():
+            from huggingface_hub import snapshot_download
+
+            folder = Path(snapshot_download(repo_id=model_id, revision=revision, cache_dir=cache_dir,
+                                            force_download=force_download, local_files_only=local_files_only,
+                                            token=token))
+        return load_pretrained(folder, map_location)
 
     def task_index(self, name: str) -> int:
         """Index of a task in ``task_norms``: what ``task_idx`` holds."""

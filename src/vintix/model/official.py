@@ -3,7 +3,7 @@
 A release snapshot is a folder of three files: ``model.pth`` (``torch.save`` of the state dict, 870 fp32
 tensors), ``config.json`` (the training config; its model fields are read, the rest kept but unused)
 and ``metadata.json`` (per task: group, dims, reward scale, observation statistics). `import_official`
-turns it into one of our checkpoints (``model.safetensors`` + ``model.json``); `export_official` writes
+turns it into one of our checkpoints (``model.safetensors`` + ``config.json`` + a model card); `export_official` writes
 one of ours back in the release's format, so the authors' code loads it unchanged.
 
 What makes the imported model compute what the authors' does (docs/official-checkpoint.md):
@@ -31,7 +31,14 @@ from typing import Any
 import torch
 
 from vintix.atomic import atomic_path, atomic_write_text
-from vintix.model.checkpoint import CheckpointError, build_model, metadata_for, read_metadata, save_pretrained
+from vintix.model.checkpoint import (
+    WEIGHTS_FILE,
+    CheckpointError,
+    build_model,
+    metadata_for,
+    read_metadata,
+    save_pretrained,
+)
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, preset
 from vintix.tasks import find_task
 from vintix.tasks.layouts import legacy_layout
@@ -322,7 +329,7 @@ def file_sha256(path: Path) -> str:
 def is_official_snapshot(directory: str | os.PathLike[str]) -> bool:
     """A folder holding a release's three files (and none of our checkpoint's)."""
     path = Path(directory)
-    return all((path / name).is_file() for name in (WEIGHTS, CONFIG, METADATA)) and not (path / "model.json").exists()
+    return all((path / name).is_file() for name in (WEIGHTS, CONFIG, METADATA)) and not (path / WEIGHTS_FILE).exists()
 
 
 def _read_json(path: Path) -> dict[str, Any]:

@@ -1,6 +1,6 @@
 """Training checkpoints: the model checkpoint (`save_pretrained`) plus what exact resume needs.
 
-``<out>/checkpoints/step-00000200/`` holds ``model.safetensors`` + ``model.json`` (so
+``<out>/checkpoints/step-00000200/`` holds ``model.safetensors`` + ``config.json`` (so
 ``load_pretrained`` works on it with no dataset), ``optimizer.safetensors`` (AdamW moments keyed
 ``<parameter name>/<state key>``: tensors are never pickled), ``rng.safetensors`` (every rank's
 torch RNG state) and ``trainer.json`` (step, tokens seen, optimizer hyperparameters, the config).
@@ -10,7 +10,7 @@ copy cut short) is caught on resume, which goes on from the newest checkpoint wh
 (`resumable_checkpoint`).
 
 ``<out>/checkpoints/best/`` (a model checkpoint only) holds the model with the best in-context score
-so far when training selects checkpoints (``select_every``); its ``model.json`` ``extra`` says the
+so far when training selects checkpoints (``select_every``); its ``config.json`` ``extra`` says the
 step and score. Pruning never touches it, and a run folder loads as it when it exists.
 """
 
@@ -33,6 +33,7 @@ from vintix.model.checkpoint import (
     CONFIG_FILE,
     WEIGHTS_FILE,
     CheckpointError,
+    is_checkpoint,
     load_pretrained,
     read_metadata,
     save_pretrained,
@@ -92,7 +93,7 @@ def checkpoint_problem(directory: Path) -> str | None:
     Reads every file whole, as resuming does: a truncated ``.safetensors`` or garbage JSON shows.
     """
     try:
-        load_pretrained(directory)  # model.json + weights: readable, fitting, finite
+        load_pretrained(directory)  # config.json + weights: readable, fitting, finite
     except CheckpointError as error:
         return str(error)
     for name in (OPTIMIZER_FILE, RNG_FILE):
@@ -157,7 +158,7 @@ def best_checkpoint_dir(out: str | os.PathLike[str]) -> Path:
 def best_score(out: str | os.PathLike[str]) -> float | None:
     """The in-context score of a run's best checkpoint, None before it has one."""
     directory = best_checkpoint_dir(out)
-    if not (directory / CONFIG_FILE).is_file():
+    if not is_checkpoint(directory):
         return None
     return float(read_metadata(directory)["extra"]["in_context_score"])
 
@@ -179,9 +180,9 @@ def model_directory(path: str | os.PathLike[str]) -> Path:
     training run at `path`'s best checkpoint (`best_checkpoint_dir`) if it selected one, else its
     newest (so `runs/x` means the model that run recommends)."""
     path = Path(path)
-    if (path / CONFIG_FILE).is_file():
+    if is_checkpoint(path):
         return path
-    if (best_checkpoint_dir(path) / CONFIG_FILE).is_file():
+    if is_checkpoint(best_checkpoint_dir(path)):
         return best_checkpoint_dir(path)
     latest = latest_checkpoint(path)
     if latest is None:
