@@ -191,3 +191,15 @@ def test_a_second_collection_into_a_folder_in_use_is_refused_at_once(tmp_path):
             collect(plan, tmp_path)
         assert not list(tmp_path.rglob("*.h5"))
     assert len(collect(plan, tmp_path)) == 1  # released with the block: the kernel's lock, no stale file to delete
+
+
+def test_a_collection_the_disk_cannot_hold_is_refused_before_anything_is_written(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=10**12)
+    with pytest.raises(CollectionError, match=r"need about [\d,.]+ GiB, and .* GiB free; free space"):
+        collect(plan, tmp_path / "data")
+    assert not (tmp_path / "data").exists()
+
+
+def test_a_seed_an_hdf5_attribute_cannot_hold_is_refused():
+    with pytest.raises(CollectionError, match=r"0 <= seed < 2\*\*63"):
+        CollectionPlan("reach-v3", histories=1, steps=10, seed=2**64)

@@ -20,6 +20,7 @@ Re-running into a folder whose histories were made with other settings is refuse
 
 from __future__ import annotations
 
+import shutil
 import zlib
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -40,6 +41,7 @@ from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
+from vintix.memory import ensure_fits
 from vintix.tasks import TaskSpec, action_box, get_task, make_env
 from vintix.tasks.custom import custom_specs
 
@@ -83,10 +85,11 @@ class CollectionPlan:
         check_field_types(self, CollectionError)
         bad = [f"{k}={v}" for k, v in (("histories", self.histories), ("steps", self.steps),
                                        ("envs_per_batch", self.envs_per_batch)) if v < 1]
-        bad += [f"seed={self.seed}"] if self.seed < 0 else []  # numpy seed sequences are unsigned
+        # numpy seed sequences are unsigned; histories record the seed as an HDF5 64-bit integer.
+        bad += [f"seed={self.seed}"] if not 0 <= self.seed < 2**63 else []
         if bad:
             raise CollectionError(f"{self.task}: {', '.join(bad)}; histories, steps and envs_per_batch must be >= 1, "
-                                  "seed >= 0")
+                                  "0 <= seed < 2**63")
         if self.schedule.pilot_steps and self.schedule.knots:
             raise CollectionError(
                 f"{self.task}: give knots or pilot_steps, not both (a pilot fits each history's knots)")
@@ -212,6 +215,8 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
         # One column per history only when pilots gave them schedules of their own: a 1M-step batch of 16
         # would otherwise hold 16 copies of the same 8 MB column.
         distinct = schedules if plan.schedule.pilot_steps else schedules[:1]
+        ensure_fits(8 * plan.steps * len(distinct), f"the noise levels of {len(distinct)} {plan.steps:,}-step "
+                    "history(ies)", "Collect shorter histories (steps)")
         epsilons = np.stack([schedule.epsilon(np.arange(plan.steps), plan.steps) for schedule in distinct], axis=1)
         _play(envs, demonstrator, epsilons, [s.noise for s in seeds], label, progress_position,
               lambda block, start, rows: block.write(rows, writers), [s.demonstrator for s in seeds])
@@ -360,8 +365,24 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
         for plan in plans:
             load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour, source=plan.demonstrator)
     check_output_kind(root, "dataset")
+    check_disk_space(plans, root)
     with folder_lock(root, "vintix collect"):
         return _collect(plans, root, workers, demonstrator, ray)
+
+
+def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:
+    """A CollectionError now, not a full disk hours from now, when the histories still to collect need more
+    space than the folder's file system has free (`history_bytes`)."""
+    from vintix.collect.estimate import history_bytes  # estimate builds on this module's plans
+
+    missing = sum(history_bytes(get_task(plan.task), plan.steps) for plan in plans for i in range(plan.histories)
+                  if not history_path(root, get_task(plan.task), i).exists())
+    existing = next(p for p in (root, *root.parents) if p.exists())
+    free = shutil.disk_usage(existing).free
+    if missing > free:
+        raise CollectionError(f"the histories still to collect need about {missing / 2**30:,.1f} GiB, and {existing} "
+                              f"has {free / 2**30:,.1f} GiB free; free space, collect fewer or shorter histories, or "
+                              "write elsewhere (--out)")
 
 
 def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator: Demonstrator | None,

@@ -63,10 +63,12 @@ def history_bytes(spec: TaskSpec, steps: int) -> int:
     """Size on disk of one history of `steps` rows of `spec`; episodes are counted as running their full
     length, so a task whose episodes end early writes 5 + 4·obs_dim bytes more per extra episode."""
     row = 4 * (spec.obs_dim + 2 * spec.act_dim + 2)
-    groups = [min(MAX_GROUP_ROWS, steps - start) for start in range(0, steps, MAX_GROUP_ROWS)]
     # A group's chunks hold min(rows, CHECKSUM_CHUNK_ROWS) rows each, the last one allocated whole.
-    allocated_rows = sum(n if n < CHECKSUM_CHUNK_ROWS else math.ceil(n / CHECKSUM_CHUNK_ROWS) * CHECKSUM_CHUNK_ROWS
-                         for n in groups)
+    def allocated(rows: int) -> int:
+        return rows if rows < CHECKSUM_CHUNK_ROWS else math.ceil(rows / CHECKSUM_CHUNK_ROWS) * CHECKSUM_CHUNK_ROWS
+
+    full, rest = divmod(steps, MAX_GROUP_ROWS)  # closed form: a 10^12-step plan is priced in no time
+    allocated_rows = full * allocated(MAX_GROUP_ROWS) + (allocated(rest) if rest else 0)
     # Each episode end: its row, its kind and the observation after it; at least one per episode_length steps.
     episode_ends = math.ceil(steps / spec.episode_length) * (4 + 1 + 4 * spec.obs_dim)
     return (row * allocated_rows + episode_ends + GROUP_METADATA_BYTES * math.ceil(steps / MAX_GROUP_ROWS)
