@@ -37,7 +37,7 @@ from vintix.atomic import check_output_kind, folder_lock
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
-from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED
+from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, history_bytes
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
@@ -373,8 +373,6 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
 def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:
     """A CollectionError now, not a full disk hours from now, when the histories still to collect need more
     space than the folder's file system has free (`history_bytes`)."""
-    from vintix.collect.estimate import history_bytes  # estimate builds on this module's plans
-
     missing = sum(history_bytes(get_task(plan.task), plan.steps) for plan in plans for i in range(plan.histories)
                   if not history_path(root, get_task(plan.task), i).exists())
     existing = next(p for p in (root, *root.parents) if p.exists())

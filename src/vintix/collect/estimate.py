@@ -13,24 +13,15 @@ collector/raw ratio of the tasks that have one, and marked as such.
 from __future__ import annotations
 
 import heapq
-import math
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 from vintix.collect.bench import CollectBenchmark
 from vintix.collect.collector import CollectionPlan, batches
-from vintix.data.hdf5 import CHECKSUM_CHUNK_ROWS, MAX_GROUP_ROWS
+from vintix.data.hdf5 import history_bytes
 from vintix.errors import VintixError
-from vintix.tasks import TaskSpec, get_task
-
-GROUP_METADATA_BYTES = 24_000
-"""HDF5 metadata per step group (measured on our files: size minus allocated chunks; 7,900 of it for the
-three episode-end datasets, docs/data-format.md §3.6)."""
-ROOT_ATTRIBUTE_BYTES = 4_300
-"""The root attributes that say how a history was made (task, seeds, schedule): they overflow the root
-group's header into a block of their own (measured: files of 250 to 12,345 steps are 4,220-4,300 bytes
-larger than their chunks and group metadata)."""
+from vintix.tasks import get_task
 
 
 @dataclass(frozen=True)
@@ -57,22 +48,6 @@ class TaskEstimate:
     @property
     def batch_seconds(self) -> list[float]:
         return [n * (self.pilot_steps + self.steps_per_history) / self.steps_per_s for n in self.batches]
-
-
-def history_bytes(spec: TaskSpec, steps: int) -> int:
-    """Size on disk of one history of `steps` rows of `spec`; episodes are counted as running their full
-    length, so a task whose episodes end early writes 5 + 4·obs_dim bytes more per extra episode."""
-    row = 4 * (spec.obs_dim + 2 * spec.act_dim + 2)
-    # A group's chunks hold min(rows, CHECKSUM_CHUNK_ROWS) rows each, the last one allocated whole.
-    def allocated(rows: int) -> int:
-        return rows if rows < CHECKSUM_CHUNK_ROWS else math.ceil(rows / CHECKSUM_CHUNK_ROWS) * CHECKSUM_CHUNK_ROWS
-
-    full, rest = divmod(steps, MAX_GROUP_ROWS)  # closed form: a 10^12-step plan is priced in no time
-    allocated_rows = full * allocated(MAX_GROUP_ROWS) + (allocated(rest) if rest else 0)
-    # Each episode end: its row, its kind and the observation after it; at least one per episode_length steps.
-    episode_ends = math.ceil(steps / spec.episode_length) * (4 + 1 + 4 * spec.obs_dim)
-    return (row * allocated_rows + episode_ends + GROUP_METADATA_BYTES * math.ceil(steps / MAX_GROUP_ROWS)
-            + ROOT_ATTRIBUTE_BYTES)
 
 
 def collector_rate(task: str, rates: dict[str, CollectBenchmark]) -> tuple[float, bool]:

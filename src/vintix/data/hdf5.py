@@ -26,6 +26,7 @@ without checksums (the published dataset) read as before.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 from bisect import bisect_right
@@ -43,6 +44,7 @@ import numpy as np
 from vintix.atomic import atomic_write_text, make_parent_dirs, partial_path, publish
 from vintix.errors import DatasetError, VintixError
 from vintix.tasks.custom import register_specs
+from vintix.tasks.registry import TaskSpec
 
 MAX_GROUP_ROWS = 10_000
 """Most rows a step group may hold in the official format."""
@@ -273,6 +275,35 @@ def inspect_layout(file: h5py.File) -> Layout:
     agreed_obs_dim, agreed_act_dim = next(iter(dims)) if len(dims) == 1 else (None, None)
     demonstrator = next(iter(demonstrator_names)) if len(demonstrator_names) == 1 else None
     return Layout(groups, agreed_obs_dim, agreed_act_dim, log.messages(), demonstrator)
+
+
+# --------------------------------------------------------------------------------------------
+# Size on disk
+
+GROUP_METADATA_BYTES = 24_000
+"""HDF5 metadata per step group (measured on our files: size minus allocated chunks; 7,900 of it for the
+three episode-end datasets, docs/data-format.md §3.6)."""
+ROOT_ATTRIBUTE_BYTES = 4_300
+"""The root attributes that say how a history was made (task, seeds, schedule): they overflow the root
+group's header into a block of their own (measured: files of 250 to 12,345 steps are 4,220-4,300 bytes
+larger than their chunks and group metadata)."""
+
+
+def history_bytes(spec: TaskSpec, steps: int) -> int:
+    """Size on disk of one history of `steps` rows of `spec`; episodes are counted as running their full
+    length, so a task whose episodes end early writes 5 + 4·obs_dim bytes more per extra episode."""
+    row = 4 * (spec.obs_dim + 2 * spec.act_dim + 2)
+    # A group's chunks hold min(rows, CHECKSUM_CHUNK_ROWS) rows each, the last one allocated whole.
+    def allocated(rows: int) -> int:
+        return rows if rows < CHECKSUM_CHUNK_ROWS else math.ceil(rows / CHECKSUM_CHUNK_ROWS) * CHECKSUM_CHUNK_ROWS
+
+    full, rest = divmod(steps, MAX_GROUP_ROWS)  # closed form: a 10^12-step plan is priced in no time
+    allocated_rows = full * allocated(MAX_GROUP_ROWS) + (allocated(rest) if rest else 0)
+    # Each episode end: its row, its kind and the observation after it; at least one per episode_length steps.
+    episode_ends = math.ceil(steps / spec.episode_length) * (4 + 1 + 4 * spec.obs_dim)
+    return (row * allocated_rows + episode_ends + GROUP_METADATA_BYTES * math.ceil(steps / MAX_GROUP_ROWS)
+            + ROOT_ATTRIBUTE_BYTES)
+
 
 
 # --------------------------------------------------------------------------------------------

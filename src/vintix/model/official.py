@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from vintix.atomic import atomic_path, atomic_write_text
@@ -262,19 +263,14 @@ def _derived_setpoint_norms(norms: list[TaskNorm]) -> list[TaskNorm]:
     if len(released) < 2:
         return []
     points = sorted(released)
-    # Least-squares line through (setpoint, mean of channel 0).
-    n, sx = len(points), sum(points)
-    sy = sum(float(released[p].obs_mean[0]) for p in points)
-    sxx, sxy = sum(p * p for p in points), sum(p * float(released[p].obs_mean[0]) for p in points)
-    slope = (n * sxy - sx * sy) / (n * sxx - sx * sx)
-    offset = (sy - slope * sx) / n
+    slope, offset = np.polyfit(points, [float(released[p].obs_mean[0]) for p in points], 1)
     nearest = released[points[-1]]
     derived = []
     for setpoint in DERIVED_SETPOINTS:
         if setpoint in released or find_task(f"industrial-benchmark-{setpoint}-v1") is None:
             continue
         mean, std = list(nearest.obs_mean), list(nearest.obs_std)
-        mean[0], std[0] = offset + slope * setpoint, 0.0
+        mean[0], std[0] = float(offset + slope * setpoint), 0.0
         derived.append(dataclasses.replace(nearest, task=f"industrial-benchmark-{setpoint}-v1", obs_mean=mean,
                                            obs_std=std))
     return derived

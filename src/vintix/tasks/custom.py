@@ -106,8 +106,7 @@ def register_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> T
     if unknown:
         raise TaskSpecError(f"{where}: task {name!r} has unknown field(s) {unknown}; known: {', '.join(SPEC_FIELDS)}")
     try:
-        arguments: dict[str, Any] = {k: (tuple(v) if k == "aliases" else v) for k, v in fields.items()}
-        return register_task(str(name), **arguments)
+        return register_task(str(name), **dict(fields))
     except TypeError as error:  # a missing required field
         raise TaskSpecError(f"{where}: task {name!r}: {error}") from error
 
