@@ -100,7 +100,21 @@ def folder_lock(folder: str | os.PathLike[str], command: str) -> Iterator[None]:
     kernel's (flock), so a process that dies, however it dies, releases it."""
     folder = Path(folder)
     check_output_folder(folder)
+    created = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
+    try:
+        with _locked(folder, command):
+            yield
+    finally:
+        # A command that failed before writing anything (a bad setting found after the lock was
+        # taken) leaves no folder behind that says it ran.
+        if created and [p.name for p in folder.iterdir()] == [LOCK_FILE]:
+            (folder / LOCK_FILE).unlink()
+            folder.rmdir()
+
+
+@contextmanager
+def _locked(folder: Path, command: str) -> Iterator[None]:
     with open(folder / LOCK_FILE, "a+") as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
