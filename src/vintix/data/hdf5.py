@@ -219,12 +219,29 @@ def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, in
             _REBUILD,
         )
         return None
+    unwritten = [key for key, ds in datasets.items() if _declares_unwritten_rows(ds)]
+    if unwritten:
+        log.add("unwritten", f"group {name!r} declares {step[0]:,} rows but stores no data for some of them in "
+                f"{unwritten} (a write that never finished, or a file that only claims its size)", _REBUILD)
+        return None
     demonstrator = demonstrator_action_name(group)
     if demonstrator is not None and group[demonstrator].shape != act:
         log.add("demonstrator shape", f"group {name!r} has {demonstrator} of shape {group[demonstrator].shape}, "
                 f"expected the action's {act}", _REBUILD)
         return None
     return step[0], obs[1], act[1]
+
+
+def _declares_unwritten_rows(dataset: h5py.Dataset) -> bool:
+    """Whether part of `dataset`'s shape was never stored: a chunk never written, or contiguous storage
+    smaller than the shape. HDF5 reads such rows as fill values without complaint, and a file of a few KB
+    may so declare 10^9 rows, which a reader would try to allocate. Metadata only: no data is read."""
+    if dataset.size == 0 or dataset.is_virtual or dataset.external:
+        return False
+    if dataset.chunks is None:
+        return dataset.id.get_storage_size() < dataset.nbytes
+    chunks = math.prod(math.ceil(n / c) for n, c in zip(dataset.shape, dataset.chunks, strict=True))
+    return dataset.id.get_num_chunks() < chunks
 
 
 def inspect_layout(file: h5py.File) -> Layout:
