@@ -2,7 +2,12 @@
 
 import filecmp
 import os
+import signal
+import subprocess
+import sys
+import time
 from dataclasses import replace
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -203,3 +208,63 @@ def test_a_collection_the_disk_cannot_hold_is_refused_before_anything_is_written
 def test_a_seed_an_hdf5_attribute_cannot_hold_is_refused():
     with pytest.raises(CollectionError, match=r"0 <= seed < 2\*\*63"):
         CollectionPlan("reach-v3", histories=1, steps=10, seed=2**64)
+
+
+def _children(pid: int) -> set[int]:
+    """The live processes whose parent is `pid` (Linux /proc)."""
+    children = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the process ended while we looked
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            children.add(int(stat.parent.name))
+    return children
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_sigterm_ends_a_multi_worker_collection_with_its_workers_and_the_rerun_is_identical(tmp_path):
+    """`kill` (SIGTERM) of `vintix collect --workers 2` mid-run: the collection and both workers end, no
+    unfinished file is left, and the re-run completes to the bytes of an uninterrupted collection."""
+    args = ["collect", "--task", "reach-v3", "--histories", "4", "--steps", "2000", "--envs-per-batch", "1",
+            "--workers", "2"]
+    killed = tmp_path / "killed"
+    task_dir = killed / "metaworld" / "reach-v3"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 120
+    while len(list(task_dir.glob("*.partial"))) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    workers = _children(process.pid)
+    try:
+        assert len(workers) >= 2, "both workers should be writing by now"
+        process.send_signal(signal.SIGTERM)
+        # Orphaned workers would hold the output pipe open: this would time out.
+        output, _ = process.communicate(timeout=60)
+        assert process.returncode != 0 and "interrupted" in output and "Traceback" not in output, output
+        deadline = time.monotonic() + 30
+        while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_alive(pid) for pid in workers), "a worker outlived the collection"
+    finally:
+        for pid in workers | {process.pid}:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert not list(task_dir.glob("*.partial"))
+
+    straight = tmp_path / "straight"
+    for out in (killed, straight):
+        result = subprocess.run([sys.executable, "-m", "vintix", *args, "--out", str(out)], env=env,
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, result.stdout + result.stderr
+    for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(4)]:
+        assert filecmp.cmp(straight / "metaworld/reach-v3" / name, task_dir / name, shallow=False), name

@@ -39,6 +39,10 @@ class _Commands(TyperGroup):
             return super().invoke(ctx)
         except (VintixError, OSError) as error:
             raise _fail(error) from None
+        except KeyboardInterrupt:  # Ctrl-C, or `kill` during a command that takes it as one
+            console.print("interrupted: files finished before are kept, and collect and train resume from them "
+                          "when re-run")
+            raise typer.Exit(code=130) from None
 
 
 app = typer.Typer(help="Vintix: in-context RL by Algorithm Distillation, end to end.", no_args_is_help=True,

@@ -20,10 +20,11 @@ Re-running into a folder whose histories were made with other settings is refuse
 
 from __future__ import annotations
 
+import multiprocessing
 import shutil
+import signal
 import zlib
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -41,6 +42,7 @@ from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, history_bytes
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
+from vintix.interrupt import sigterm_as_ctrl_c
 from vintix.memory import ensure_fits
 from vintix.tasks import TaskSpec, action_box, get_task, make_env
 from vintix.tasks.custom import custom_specs
@@ -341,11 +343,22 @@ def _check_existing_histories(plan: CollectionPlan, root: Path) -> None:
 
 
 def _collect_batch_in_worker(args: tuple[CollectionPlan, list[int], Path, Demonstrator | None, int]) -> list[Path]:
+    plan, indices, root, demonstrator, position = args
+    return collect_batch(plan, indices, root, demonstrator, progress_position=position)
+
+
+def _start_worker() -> None:
     import torch
 
     torch.set_num_threads(1)  # one process per core: threads inside would only contend
-    plan, indices, root, demonstrator, position = args
-    return collect_batch(plan, indices, root, demonstrator, progress_position=position)
+    # The parent owns its workers: Ctrl-C reaches it (and the whole process group), and it ends every
+    # worker with SIGTERM, which unwinds the worker quietly so its unfinished files are removed.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _exit_quietly)
+
+
+def _exit_quietly(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)
 
 
 def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, workers: int = 1,
@@ -366,7 +379,8 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
             load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour, source=plan.demonstrator)
     check_output_kind(root, "dataset")
     check_disk_space(plans, root)
-    with folder_lock(root, "vintix collect"):
+    # `kill` ends a collection as Ctrl-C does: its unfinished files removed, its workers ended.
+    with folder_lock(root, "vintix collect"), sigterm_as_ctrl_c():
         return _collect(plans, root, workers, demonstrator, ray)
 
 
@@ -401,8 +415,11 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
     if ray is not None:
         _collect_on_ray(jobs, root)
     elif workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(_collect_batch_in_worker, [(*job, n % workers) for n, job in enumerate(jobs)]))
+        # Leaving the pool's block for any reason (a worker's error, Ctrl-C, or `kill`, which collect()
+        # turns into Ctrl-C) terminates the workers and waits for them: they are never orphaned, blocked
+        # on a queue nobody feeds, and they remove their unfinished files.
+        with multiprocessing.Pool(workers, initializer=_start_worker) as pool:
+            pool.map(_collect_batch_in_worker, [(*job, n % workers) for n, job in enumerate(jobs)], chunksize=1)
     else:
         for job in jobs:
             collect_batch(*job)

@@ -30,10 +30,8 @@ from __future__ import annotations
 import json
 import random
 import shutil
-import signal
 import stat
 import tempfile
-import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -63,6 +61,7 @@ from vintix.demonstrators.trained import (
     save_trained_policy,
 )
 from vintix.errors import VintixError
+from vintix.interrupt import sigterm_as_ctrl_c
 from vintix.tasks import get_task, list_tasks, make_env
 from vintix.tasks.scores import reference
 from vintix.userdirs import user_cache_dir
@@ -469,25 +468,6 @@ class _SaveEvery(BaseCallback):
         return True
 
 
-@contextmanager
-def _sigterm_as_ctrl_c() -> Iterator[None]:
-    """Let SIGTERM interrupt like Ctrl-C, so the run is saved before it stops: `kill` and cluster
-    schedulers send it, and background jobs ignore Ctrl-C. Python takes signals in the main thread
-    only; elsewhere SIGTERM keeps its default."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def _new_or_resumed(recipe: DemonstratorRecipe, venv: VecEnv, seed: int, resume: Path | None
                     ) -> tuple[BaseAlgorithm, VecNormalize | None]:
     """The SB3 model (and its VecNormalize wrapper, if the recipe has one): fresh, or loaded from `resume`."""
@@ -573,7 +553,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     if callback is not None:
         callbacks.append(callback)
     try:
-        with _sigterm_as_ctrl_c():
+        with sigterm_as_ctrl_c():
             model.learn(total_timesteps=budget - model.num_timesteps, callback=callbacks,
                         reset_num_timesteps=found is None, progress_bar=progress_bar)
     except KeyboardInterrupt:
