@@ -1,5 +1,8 @@
 """Shared helpers for tests that drive real environments."""
 
+import subprocess
+from pathlib import Path
+
 import h5py
 import numpy as np
 import pytest
@@ -44,3 +47,27 @@ def flip_a_byte_of_data(path, dataset: str = "0-6/proprio_observation") -> None:
         byte = f.read(1)
         f.seek(-1, 1)
         f.write(bytes([byte[0] ^ 0xFF]))
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A real 8 MB file system (tmpfs), for a disk that fills up; skipped where mounting is not allowed."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=8m", "tmpfs", str(disk)], capture_output=True).returncode:
+        pytest.skip("mounting a tmpfs needs root (or CAP_SYS_ADMIN)")
+    yield disk
+    subprocess.run(["umount", "--lazy", str(disk)], check=True)  # lazy: a file a failed test left open
+
+
+def fill_up(disk: Path) -> Path:
+    """Write zeros into `disk` until it is full, as another program would; returns the ballast file."""
+    ballast = disk / "ballast"
+    with open(ballast, "wb") as f:
+        try:
+            while True:
+                f.write(bytes(1 << 16))
+                f.flush()
+        except OSError:
+            pass
+    return ballast

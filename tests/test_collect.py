@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
+from conftest import fill_up
 from vintix.atomic import FolderInUseError, folder_lock
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.collect.bench import benchmark_collection
@@ -267,4 +268,33 @@ def test_sigterm_ends_a_multi_worker_collection_with_its_workers_and_the_rerun_i
                                 capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stdout + result.stderr
     for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(4)]:
+        assert filecmp.cmp(straight / "metaworld/reach-v3" / name, task_dir / name, shallow=False), name
+
+
+def test_a_disk_that_fills_up_mid_collection_ends_it_with_the_fix_and_no_unfinished_file(tmp_path, small_disk):
+    """Another program fills the disk while `vintix collect` writes (the check before it starts passed):
+    a named error with the fix, exit 2, no traceback, no .partial left; once there is room, the re-run
+    completes to the bytes of an uninterrupted collection."""
+    args = ["collect", "--task", "reach-v3", "--histories", "2", "--steps", "2000", "--envs-per-batch", "1"]
+    out = small_disk / "data"
+    task_dir = out / "metaworld" / "reach-v3"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(out)], env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 120
+    while not list(task_dir.glob("*.partial")) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    ballast = fill_up(small_disk)
+    output, _ = process.communicate(timeout=120)
+    assert process.returncode == 2, output
+    assert "No space left on device" in output and "the disk is full" in output and "Traceback" not in output, output
+    assert not list(task_dir.glob("*.partial"))
+
+    ballast.unlink()
+    straight = tmp_path / "straight"
+    for folder in (out, straight):
+        result = subprocess.run([sys.executable, "-m", "vintix", *args, "--out", str(folder)], env=env,
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, result.stdout + result.stderr
+    for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(2)]:
         assert filecmp.cmp(straight / "metaworld/reach-v3" / name, task_dir / name, shallow=False), name

@@ -327,6 +327,21 @@ def history_bytes(spec: TaskSpec, steps: int) -> int:
 # Writer
 
 
+@contextmanager
+def _write_errors_as_os_errors(path: Path) -> Iterator[None]:
+    """HDF5's failed writes as the OSError of the system call that failed (a full disk is ENOSPC), naming
+    `path`: h5py raises some of them as RuntimeErrors that carry the errno only in their text."""
+    try:
+        yield
+    except (OSError, RuntimeError) as error:
+        if isinstance(error, OSError) and error.errno is not None:
+            raise OSError(error.errno, os.strerror(error.errno), str(path)) from error
+        found = re.search(r"errno = (\d+)", str(error))
+        if found is None:
+            raise
+        raise OSError(int(found.group(1)), os.strerror(int(found.group(1))), str(path)) from error
+
+
 class LearningHistoryWriter:
     """Writes one learning history in the official format, atomically.
 
@@ -376,7 +391,10 @@ class LearningHistoryWriter:
         self._flushed = 0
         self._last_step = -1
         make_parent_dirs(self.path)
-        self._file: h5py.File | None = h5py.File(self._partial, "w")
+        # No chunk cache: each chunk reaches the disk inside the call that writes it, so a full disk is an
+        # OSError there, not a write HDF5 retries when it frees the dataset (errors it can only print,
+        # then a segfault).
+        self._file: h5py.File | None = h5py.File(self._partial, "w", rdcc_nbytes=0)
         self._file.attrs.update(attrs or {})
 
     @property
@@ -474,6 +492,10 @@ class LearningHistoryWriter:
         return {EPISODE_END_KIND: kinds.astype(np.int8), FINAL_OBSERVATION: final.astype(np.float32)}
 
     def _flush(self) -> None:
+        with _write_errors_as_os_errors(self._partial):
+            self._write_group()
+
+    def _write_group(self) -> None:
         assert self._file is not None
         start, n = self._flushed, self._filled
         group = self._file.create_group(f"{start}-{start + n - 1}")
@@ -504,7 +526,8 @@ class LearningHistoryWriter:
                 self._flush()
             if self._flushed == 0:
                 raise DatasetError(self.path, "no steps were appended, so no file was written; append before close()")
-            self._file.close()
+            with _write_errors_as_os_errors(self._partial):
+                self._file.close()
             publish(self._partial, self.path)
         except BaseException:
             self.abort()
@@ -515,8 +538,11 @@ class LearningHistoryWriter:
     def abort(self) -> None:
         """Discard everything written so far (the final file never appears)."""
         if self._file is not None:
-            self._file.close()
-            self._file = None
+            file, self._file = self._file, None
+            try:
+                file.close()
+            except (OSError, RuntimeError):  # its last writes failed (a full disk): the file is being discarded
+                pass
         self._partial.unlink(missing_ok=True)
 
     def __enter__(self) -> LearningHistoryWriter:
