@@ -758,7 +758,8 @@ cli_error("train", "data: expert distillation without noise_free_fraction", lamb
 cli_error("train", "data: window longer than every history", lambda: [
     "train", "--data", clean_data(), "--out", WORK / "t-window", *QUICK_TRAIN,
     "--set", "model_overrides={n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, "
-    "mlp_dim: 32, context_len: 1024}", "--set", "window_len=1000"], "no history holds a window")
+    "mlp_dim: 32, context_len: 1024}", "--set", "window_len=1000"], "no history holds a window",
+    after=not_written(lambda: WORK / "t-window"))
 
 
 def trains_anyway(data: str, expect: str) -> Callable[[], str | None]:

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import errno
 import math
 import re
 import shutil
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -15,6 +17,7 @@ import torch
 from safetensors.torch import load_file
 from typer.testing import CliRunner
 
+from conftest import fill_up
 from vintix.agent import Agent
 from vintix.atomic import folder_lock
 from vintix.cli import app
@@ -466,3 +469,20 @@ def test_shipped_training_configs_load_by_name_and_an_unknown_one_lists_them():
     assert load_config("icrl-suite").expert_distillation  # the goal-aware expert's action as the target
     with pytest.raises(ConfigError, match="icrl-suite"):
         load_config("no-such-config")
+
+
+def test_a_disk_that_fills_up_mid_training_ends_it_with_the_last_checkpoint_intact_and_no_partial_one(
+        metaworld_data, tmp_path, small_disk):
+    """Another program fills the disk after step 3 (a callback writes the ballast): step 4's checkpoint
+    cannot be written. The error is the disk's (ENOSPC, naming the file), the half-written checkpoint is
+    removed, step 2's stays whole, and once there is room the run resumes from it and finishes."""
+    out = small_disk / "run"
+    config = make_config(metaworld_data, out, max_steps=6, checkpoint_every=2)
+    ballast: list[Path] = []
+    with pytest.raises(OSError, match=r"No space left on device: '.*step-00000004\.partial") as error:
+        Trainer(config, callbacks=[(3, lambda model, step: ballast.append(fill_up(small_disk)))]).run()
+    assert error.value.errno == errno.ENOSPC
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["step-00000002"]
+    ballast[0].unlink()
+    Trainer(config).run()
+    assert [p.name for p in list_checkpoints(out)] == ["step-00000002", "step-00000004", "step-00000006"]

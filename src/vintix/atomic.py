@@ -4,11 +4,17 @@ from __future__ import annotations
 
 import fcntl
 import os
+import re
+import shutil
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from vintix.errors import OutputPathError
+
+if TYPE_CHECKING:
+    import torch
 
 PARTIAL_SUFFIX = ".partial"
 
@@ -83,6 +89,42 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Write `text` to `path` atomically."""
     with atomic_path(path) as temporary:
         temporary.write_text(text)
+
+
+def atomic_save_tensors(tensors: dict[str, torch.Tensor], path: str | os.PathLike[str],
+                        metadata: dict[str, str] | None = None) -> None:
+    """safetensors' `save_file`, atomically. Its I/O failures (a full disk) are raised as the OSError of
+    the failed system call naming `path`, like every other write: safetensors reports them as a
+    SafetensorError that carries the errno only in its text."""
+    # Imported here: the CLI imports this module, and `vintix --help` should not wait for torch.
+    from safetensors import SafetensorError
+    from safetensors.torch import save_file
+
+    with atomic_path(path) as temporary:
+        try:
+            save_file(tensors, str(temporary), metadata=metadata)
+        except SafetensorError as error:
+            found = re.search(r"os error (\d+)", str(error))
+            if found is None:
+                raise
+            number = int(found.group(1))
+            raise OSError(number, os.strerror(number), str(path)) from error
+
+
+@contextmanager
+def atomic_directory(directory: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary folder beside `directory` to assemble it in; when the block succeeds it replaces
+    `directory` whole, and when it raises (a full disk) it is deleted, leaving `directory` as it was."""
+    directory = Path(directory)
+    partial = partial_path(directory)
+    shutil.rmtree(partial, ignore_errors=True)  # a leftover of a process killed while assembling
+    try:
+        yield partial
+        if directory.exists():
+            shutil.rmtree(directory)
+        os.replace(partial, directory)
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)
 
 
 LOCK_FILE = ".vintix-lock"

@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 from safetensors import SafetensorError
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.distributions import DiagGaussianDistribution
@@ -30,7 +30,7 @@ from stable_baselines3.common.running_mean_std import RunningMeanStd
 from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.sac.policies import SACPolicy
 
-from vintix.atomic import atomic_path, atomic_write_text
+from vintix.atomic import atomic_save_tensors, atomic_write_text
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, action_box, make_env
 
@@ -68,8 +68,7 @@ def save_trained_policy(model: BaseAlgorithm, vec_normalize: VecNormalize | None
         tensors[OBS_MEAN] = torch.as_tensor(statistics.mean, dtype=torch.float64)
         tensors[OBS_VAR] = torch.as_tensor(statistics.var, dtype=torch.float64)
         meta["obs_normalization"] = {"clip": vec_normalize.clip_obs, "epsilon": vec_normalize.epsilon}
-    with atomic_path(tensors_path) as temporary:
-        save_file(tensors, str(temporary))
+    atomic_save_tensors(tensors, tensors_path)
     atomic_write_text(meta_path, json.dumps(meta, indent=2) + "\n")
     return tensors_path
 

@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 
-from vintix.atomic import atomic_path, atomic_write_text
+from vintix.atomic import atomic_save_tensors, atomic_write_text
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters
@@ -100,8 +100,7 @@ def write_checkpoint(model: Vintix, directory: Path) -> None:
     directory = Path(directory)
     # safetensors refuses tensors that share memory or are not contiguous; a state_dict has neither.
     weights = {name: tensor.detach().cpu().contiguous() for name, tensor in model.state_dict().items()}
-    with atomic_path(directory / WEIGHTS_FILE) as temporary:
-        save_file(weights, str(temporary), metadata={"format": "pt"})
+    atomic_save_tensors(weights, directory / WEIGHTS_FILE, metadata={"format": "pt"})
     metadata = model_metadata(model, model.checkpoint_extra)
     atomic_write_text(directory / CONFIG_FILE, json.dumps(metadata, indent=1) + "\n")
 

@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 
-from vintix.atomic import PARTIAL_SUFFIX, atomic_path, atomic_write_text
+from vintix.atomic import PARTIAL_SUFFIX, atomic_directory, atomic_save_tensors, atomic_write_text
 from vintix.model.checkpoint import (
     CONFIG_FILE,
     WEIGHTS_FILE,
@@ -166,12 +166,8 @@ def best_score(out: str | os.PathLike[str]) -> float | None:
 def save_best_checkpoint(out: str | os.PathLike[str], model: Vintix, extra: dict[str, Any]) -> Path:
     """Replace the run's best checkpoint with `model` (assembled aside, then renamed into place)."""
     directory = best_checkpoint_dir(out)
-    partial = directory.with_name(directory.name + PARTIAL_SUFFIX)
-    shutil.rmtree(partial, ignore_errors=True)
-    save_pretrained(model, partial, extra=extra)
-    if directory.exists():
-        shutil.rmtree(directory)
-    os.replace(partial, directory)
+    with atomic_directory(directory) as partial:
+        save_pretrained(model, partial, extra=extra)
     return directory
 
 
@@ -225,18 +221,13 @@ def save_training_checkpoint(
     rng: dict[str, torch.Tensor], state: dict[str, Any], extra: dict[str, Any],
 ) -> Path:
     """Write a whole checkpoint directory atomically (see the module docstring)."""
-    partial = directory.with_name(directory.name + PARTIAL_SUFFIX)
-    shutil.rmtree(partial, ignore_errors=True)
-    save_pretrained(model, partial, extra=extra)
-    tensors, groups = _optimizer_tensors(optimizer, param_names)
-    with atomic_path(partial / OPTIMIZER_FILE) as temporary:
-        save_file(tensors, str(temporary))
-    with atomic_path(partial / RNG_FILE) as temporary:
-        save_file({k: v.contiguous() for k, v in rng.items()}, str(temporary))
-    atomic_write_text(partial / STATE_FILE, json.dumps({**state, "optimizer_param_groups": groups}, indent=1) + "\n")
-    if directory.exists():
-        shutil.rmtree(directory)
-    os.replace(partial, directory)
+    with atomic_directory(directory) as partial:
+        save_pretrained(model, partial, extra=extra)
+        tensors, groups = _optimizer_tensors(optimizer, param_names)
+        atomic_save_tensors(tensors, partial / OPTIMIZER_FILE)
+        atomic_save_tensors({k: v.contiguous() for k, v in rng.items()}, partial / RNG_FILE)
+        atomic_write_text(partial / STATE_FILE,
+                          json.dumps({**state, "optimizer_param_groups": groups}, indent=1) + "\n")
     return directory
 
 

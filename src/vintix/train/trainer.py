@@ -436,6 +436,8 @@ class Trainer:
         stop = min(until_step if until_step is not None else cfg.max_steps, cfg.max_steps)
         groups = [g.name for g in self.data.groups]
         group_index = {g: i for i, g in enumerate(groups)}
+        # The data's windows are checked (a window longer than every history) before the log is created.
+        batches = iter(self._loader())
         log = MetricsLog(self.out, groups, self.step, cfg.tensorboard) if self.dist.is_main else None
         peak = torch.tensor(measure_matmul_flops(self.device), dtype=torch.float64, device=self.device)
         if self.dist.world_size > 1:
@@ -453,76 +455,76 @@ class Trainer:
         # disable=None: quiet when not on a terminal, where each redraw would be a line of the log
         progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train",
                         disable=None if self.dist.is_main else True, dynamic_ncols=True)
-        batches = iter(self._loader())
         last_time, last_tokens, last_dir = time.perf_counter(), self.tokens, None
-        while self.step < stop:
-            lr = learning_rate(self.step, cfg)
-            for param_group in self.optimizer.param_groups:
-                param_group["lr"] = lr
-            for micro in range(cfg.grad_accum):
-                batch = batch_to(next(batches), self.device)
-                # DDP all-reduces the gradients of the last micro-batch only.
-                unsynced = (self.loss_module.no_sync()
-                            if isinstance(self.loss_module, nn.parallel.DistributedDataParallel)
-                            and micro < cfg.grad_accum - 1 else contextlib.nullcontext())
-                with unsynced, precision_context(self.device):
-                    losses = self.loss_module(batch)
-                (losses.mean() / cfg.grad_accum).backward()
-                start = 0
-                for group, part in batch.items():
-                    n = part["obs"].shape[0]
-                    totals = sums[group_index[group]]
-                    totals[0] += losses[start : start + n].detach().double().sum()
-                    totals[1] += n
-                    totals[2] += n * self.window_len * self.flops[group]
-                    start += n
-            grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
-            # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.
-            if not torch.isfinite(grad_norm):
-                progress.close()
-                if log is not None:
-                    log.close()
-                raise NonFiniteLossError(
-                    f"step {self.step + 1}: the loss or its gradient is not finite (last micro-batch loss "
-                    f"{float(losses.detach().mean()):.4g}, gradient norm {float(grad_norm):.4g}); training stopped "
-                    f"before the optimizer step, so no NaN reached the weights; {self._last_good()}")
-            self.optimizer.step()
-            self.optimizer.zero_grad(set_to_none=True)
-            self.step += 1
-            self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
-            progress.update(1)
-            selection = Selection(math.nan)
-            if cfg.select_every and self.step % cfg.select_every == 0 and self.dist.is_main:
-                started = time.perf_counter()
-                selection = self._select()
-                last_time += time.perf_counter() - started  # evaluation time is not training time
-            if self.step % cfg.log_every == 0 or self.step == stop:
-                if self.dist.world_size > 1:
-                    dist.all_reduce(sums)
-                now = time.perf_counter()
-                elapsed = now - last_time
-                per_group = (sums[:, 0] / sums[:, 1].clamp(min=1)).tolist()
-                row = {"step": self.step, "tokens": self.tokens,
-                       "loss": float(sums[:, 0].sum() / sums[:, 1].sum()), "lr": lr, "grad_norm": float(grad_norm),
-                       "tokens_per_s": (self.tokens - last_tokens) / elapsed,
-                       "mfu": float(sums[:, 2].sum() / elapsed / peak), "in_context_score": selection.score,
-                       "reward_use_gap": selection.reward_use_gap,
-                       **{f"loss_{g}": (per_group[i] if sums[i, 1] else math.nan) for i, g in enumerate(groups)}}
-                if log is not None:
-                    log.write(row)
-                    progress.set_postfix(loss=f"{row['loss']:.4f}", tok_s=f"{row['tokens_per_s']:,.0f}",
-                                         mfu=f"{row['mfu']:.0%}",
-                                         **({"best": f"{self.best_score:.3f}"} if self.best_score is not None else {}))
-                sums.zero_()
-                last_time, last_tokens = time.perf_counter(), self.tokens
-            self._run_callbacks()
-            if self.step % cfg.checkpoint_every == 0 or self.step == stop:
-                last_dir = self.save()
-                last_time = time.perf_counter()  # checkpoint time is not training time
-        progress.close()
-        del batches  # shuts DataLoader workers down
+        # However the loop ends (an error, a full disk, Ctrl-C), the log and TensorBoard files are closed.
+        try:
+            while self.step < stop:
+                lr = learning_rate(self.step, cfg)
+                for param_group in self.optimizer.param_groups:
+                    param_group["lr"] = lr
+                for micro in range(cfg.grad_accum):
+                    batch = batch_to(next(batches), self.device)
+                    # DDP all-reduces the gradients of the last micro-batch only.
+                    unsynced = (self.loss_module.no_sync()
+                                if isinstance(self.loss_module, nn.parallel.DistributedDataParallel)
+                                and micro < cfg.grad_accum - 1 else contextlib.nullcontext())
+                    with unsynced, precision_context(self.device):
+                        losses = self.loss_module(batch)
+                    (losses.mean() / cfg.grad_accum).backward()
+                    start = 0
+                    for group, part in batch.items():
+                        n = part["obs"].shape[0]
+                        totals = sums[group_index[group]]
+                        totals[0] += losses[start : start + n].detach().double().sum()
+                        totals[1] += n
+                        totals[2] += n * self.window_len * self.flops[group]
+                        start += n
+                grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
+                # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.
+                if not torch.isfinite(grad_norm):
+                    raise NonFiniteLossError(
+                        f"step {self.step + 1}: the loss or its gradient is not finite (last micro-batch loss "
+                        f"{float(losses.detach().mean()):.4g}, gradient norm {float(grad_norm):.4g}); training stopped "
+                        f"before the optimizer step, so no NaN reached the weights; {self._last_good()}")
+                self.optimizer.step()
+                self.optimizer.zero_grad(set_to_none=True)
+                self.step += 1
+                self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
+                progress.update(1)
+                selection = Selection(math.nan)
+                if cfg.select_every and self.step % cfg.select_every == 0 and self.dist.is_main:
+                    started = time.perf_counter()
+                    selection = self._select()
+                    last_time += time.perf_counter() - started  # evaluation time is not training time
+                if self.step % cfg.log_every == 0 or self.step == stop:
+                    if self.dist.world_size > 1:
+                        dist.all_reduce(sums)
+                    now = time.perf_counter()
+                    elapsed = now - last_time
+                    per_group = (sums[:, 0] / sums[:, 1].clamp(min=1)).tolist()
+                    row = {"step": self.step, "tokens": self.tokens,
+                           "loss": float(sums[:, 0].sum() / sums[:, 1].sum()), "lr": lr, "grad_norm": float(grad_norm),
+                           "tokens_per_s": (self.tokens - last_tokens) / elapsed,
+                           "mfu": float(sums[:, 2].sum() / elapsed / peak), "in_context_score": selection.score,
+                           "reward_use_gap": selection.reward_use_gap,
+                           **{f"loss_{g}": (per_group[i] if sums[i, 1] else math.nan) for i, g in enumerate(groups)}}
+                    if log is not None:
+                        log.write(row)
+                        shown_best = {"best": f"{self.best_score:.3f}"} if self.best_score is not None else {}
+                        progress.set_postfix(loss=f"{row['loss']:.4f}", tok_s=f"{row['tokens_per_s']:,.0f}",
+                                             mfu=f"{row['mfu']:.0%}", **shown_best)
+                    sums.zero_()
+                    last_time, last_tokens = time.perf_counter(), self.tokens
+                self._run_callbacks()
+                if self.step % cfg.checkpoint_every == 0 or self.step == stop:
+                    last_dir = self.save()
+                    last_time = time.perf_counter()  # checkpoint time is not training time
+        finally:
+            progress.close()
+            del batches  # shuts DataLoader workers down
+            if log is not None:
+                log.close()
         if log is not None:
-            log.close()
             best = (f", best in-context score {self.best_score:.3f} in {best_checkpoint_dir(self.out)}"
                     if self.best_score is not None else "")
             print(f"step {self.step}: checkpoints under {self.out / 'checkpoints'}, log {log.path}"
