@@ -3,6 +3,8 @@ same commands give in local processes; without Ray installed, `--ray` says how t
 
 from __future__ import annotations
 
+import re
+import socket
 import sys
 
 import numpy as np
@@ -66,4 +68,36 @@ def test_ray_without_ray_installed_says_how_to_install_it_before_any_work(tmp_pa
     result = runner.invoke(app, [*command, "--ray", "auto", "--out", str(tmp_path / "out")])
     assert result.exit_code == 2, result.output
     assert "pip install 'vintix[cluster]'" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def a_closed_port() -> int:
+    """A local TCP port nothing listens on (bound, then released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("where, named", [("--ray", "(from --ray)"), ("RAY_ADDRESS", "(from RAY_ADDRESS)"),
+                                          ("stale ray start", "(from the latest `ray start` on this machine)")])
+def test_a_cluster_address_where_nothing_runs_is_named_not_retried_for_minutes(tmp_path, monkeypatch, where, named):
+    """ray.init retries such an address for minutes, printing warnings (a one-episode `eval --ray auto`
+    never ended); `--ray` refuses it before any work, naming where the address came from."""
+    ray = pytest.importorskip("ray")
+    ray.shutdown()  # a connected process never looks at an address (the module's local instance)
+    port = a_closed_port()
+    address = f"127.0.0.1:{port}"
+    monkeypatch.setenv("RAY_TMPDIR", str(tmp_path / "ray-tmp"))  # where `ray start` records its cluster
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    if where == "RAY_ADDRESS":
+        monkeypatch.setenv("RAY_ADDRESS", address)
+    elif where == "stale ray start":  # the file `ray start` leaves when its cluster dies without `ray stop`
+        (tmp_path / "ray-tmp" / "ray").mkdir(parents=True)
+        (tmp_path / "ray-tmp" / "ray" / "ray_current_cluster").write_text(address)
+    result = runner.invoke(app, ["eval", "--checkpoint", "point-goal", "--tasks", "point-goal-v1", "--shots", "1",
+                                 "--seeds", "1", "--ray", address if where == "--ray" else "auto",
+                                 "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    # Ray's own lookup of a recorded cluster names this machine by its network address, not 127.0.0.1.
+    assert re.search(rf"no Ray cluster answers at [\d.]+:{port} {re.escape(named)}", " ".join(result.output.split()))
     assert not (tmp_path / "out").exists()

@@ -9,13 +9,16 @@ first use, never when vintix is imported.
 
 from __future__ import annotations
 
+import os
+import socket
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
 from typing import Any, TypeVar
+from urllib.parse import urlsplit
 
 from tqdm import tqdm
 
-from vintix.errors import MissingDependencyError
+from vintix.errors import MissingDependencyError, VintixError
 
 INSTALL = "pip install 'vintix[cluster]'"
 # Workers' own progress bars reach the driver as log lines, which would bury the driver's bar;
@@ -23,6 +26,10 @@ INSTALL = "pip install 'vintix[cluster]'"
 WORKER_ENV = {"env_vars": {"TQDM_DISABLE": "1"}}
 
 R = TypeVar("R")
+
+
+class ClusterUnreachableError(VintixError):
+    """Nothing answers at the Ray cluster address given (by --ray or RAY_ADDRESS)."""
 
 
 def import_ray() -> ModuleType:
@@ -42,11 +49,44 @@ def connect(address: str) -> None:
     ``"auto"`` is ``ray.init()`` with no address, not Ray's own ``address="auto"``: it joins the cluster
     that ``RAY_ADDRESS`` or the latest ``ray start`` on this machine names, and where there is none it
     starts a local Ray instance (a laptop), where Ray's ``"auto"`` would fail. Anything else
-    (``host:6379``, ``ray://host:10001``) must be a running cluster.
+    (``host:6379``, ``ray://host:10001``) must be a running cluster. Whichever address is to be joined
+    must answer first (`check_reachable`): Ray itself would retry a dead one for minutes.
     """
     ray = import_ray()
-    if not ray.is_initialized():
-        ray.init(address=None if address == "auto" else address)
+    if ray.is_initialized():
+        return
+    if address != "auto":
+        check_reachable(address, "--ray", "start it (ray start --head) or correct the address")
+    elif os.environ.get("RAY_ADDRESS"):
+        check_reachable(os.environ["RAY_ADDRESS"], "RAY_ADDRESS",
+                        "start it, correct RAY_ADDRESS, or unset it so that --ray auto starts a local instance")
+    else:
+        # ray.init() joins the cluster the latest `ray start` here recorded in a file, which stays behind
+        # when that cluster dies without `ray stop`. Ray's own lookup (private, so pinned with Ray's version).
+        from ray._private.services import canonicalize_bootstrap_address
+
+        recorded = canonicalize_bootstrap_address(None)  # type: ignore[arg-type]  # documented to take None
+        if recorded:
+            check_reachable(recorded, "the latest `ray start` on this machine",
+                            "start it again, or run `ray stop` to forget it so that --ray auto starts a local instance")
+    ray.init(address=None if address == "auto" else address)
+
+
+def check_reachable(address: str, source: str, fix: str, timeout: float = 10.0) -> None:
+    """Raise ClusterUnreachableError (naming `source` and `fix`) unless something listens at `address`'s
+    host and port: `ray.init` retries an address where no cluster runs for minutes, printing connection
+    warnings, instead of failing. Addresses without a port (Ray's own "auto") are left to Ray."""
+    parts = urlsplit(address if "://" in address else f"//{address}")
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:  # a port that is not a number
+        host, port = None, None
+    if not host or port is None:
+        return
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as error:
+        raise ClusterUnreachableError(f"no Ray cluster answers at {address} (from {source}): {error}; {fix}") from None
 
 
 def map_tasks(function: Callable[..., R], calls: Sequence[tuple[Any, ...]], description: str,
