@@ -21,6 +21,7 @@ from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError
+from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
@@ -897,9 +898,9 @@ def eval_command(
     tasks: Annotated[list[str], typer.Option(
         help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
-    shots: Annotated[int, typer.Option(help="episodes per run")] = 50,
-    seeds: Annotated[int, typer.Option(help="runs per task (Meta-World: one hidden goal each)")] = 3,
-    first_seed: Annotated[int, typer.Option(help="env seed of the first run")] = 0,
+    shots: Annotated[int, typer.Option(help="episodes per run")] = EvalConfig.shots,
+    seeds: Annotated[int, typer.Option(help="runs per task (Meta-World: one hidden goal each)")] = EvalConfig.seeds,
+    first_seed: Annotated[int, typer.Option(help="env seed of the first run")] = EvalConfig.first_seed,
     variation: Annotated[list[str] | None, typer.Option(
         help="MuJoCo physics variation NAME=VALUE, e.g. viscosity=0.05")] = None,
     prompt_from: Annotated[Path | None, typer.Option(
@@ -910,11 +911,11 @@ def eval_command(
              "task has it) or paper (the paper's table; what comparisons with its numbers need)")] = "ours",
     label: Annotated[str | None, typer.Option(
         help="name of this model in reports (default: checkpoint folder)")] = None,
-    batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = 64,
+    batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = EvalConfig.batch_envs,
     reward_input: Annotated[str, typer.Option(
         metavar="true|zero|shuffled", help="rewards fed back to the model: the env's (true), zeros, or the episode's "
         "own in random order (shuffled), to measure how much the rewards drive the in-context gains; scores and "
-        "success are always computed from the true returns")] = "true",
+        "success are always computed from the true returns")] = EvalConfig.reward_input,
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
                                          "tiny ops that a second thread slows down on a busy machine")] = 1,
@@ -925,7 +926,7 @@ def eval_command(
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.agent.pretrained import checkpoint_name
-    from vintix.evaluate import EvalConfig, evaluate, parse_variation, shot_curves, shots_to_show, summarize
+    from vintix.evaluate import evaluate, parse_variation, shot_curves, shots_to_show, summarize
     from vintix.tasks.scores import check_table
 
     torch.set_num_threads(threads)
@@ -944,7 +945,7 @@ def eval_command(
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     if reward_input != "true":
         console.print(f"rewards fed back to the model: {reward_input}; scores and success from the true returns")
-    plateau = f"best {min(10, shots)}-shot plateau"
+    plateau = f"best {min(PLATEAU_SHOTS, shots)}-shot plateau"
     with_success = any(s["success_first"] is not None for s in summary)
     table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task"
                         + ("; success rate where the task has a success flag" if with_success else ""))
@@ -989,7 +990,8 @@ def report_command(
     reference: Annotated[str, typer.Option(
         help="reference table: ours (our measured demonstrators and random policy; every task has it) or paper "
              "(the paper's table; what comparisons with its numbers need)")] = "ours",
-    plateau_shots: Annotated[int, typer.Option(min=1, help="k of the best-k-shot plateau (converged score)")] = 10,
+    plateau_shots: Annotated[int, typer.Option(
+        min=1, help="k of the best-k-shot plateau (converged score)")] = PLATEAU_SHOTS,
     model_card: Annotated[bool, typer.Option(
         help="put the released model's model-card scores beside each task and domain (results of a model "
              "imported with vintix import-official; the card uses its own reference returns)")] = False,

@@ -21,7 +21,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Hashable, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -34,8 +34,8 @@ from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_kind, check_output_path
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
+from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
 from vintix.evaluate.summary import best_k_plateau
-from vintix.fields import check_field_types
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, action_box, find_task, get_task, make_env, resolve_tasks
 from vintix.tasks.custom import custom_specs
@@ -46,58 +46,9 @@ from vintix.train.trainer import Scorer, Selection
 EPISODES_FILE = "episodes.csv"
 RUN_FILE = "run.json"
 GOAL_PROTOCOL = "one hidden goal per env for its life, drawn from the env seed (ML45 meta-RL protocol)"
-REWARD_INPUTS = ("true", "zero", "shuffled")
-"""What `EvalConfig.reward_input` may feed back to the model."""
 _SHUFFLE_STREAM = 1
 """Mixed into the env seed for the shuffled-reward draws: gymnasium seeds the env's own generator with
 the bare seed, and the draws should not share its stream."""
-
-
-class EvalConfigError(VintixError, ValueError):
-    """An evaluation setting out of its range (the message names it)."""
-
-
-@dataclass
-class EvalConfig:
-    """What `vintix eval` runs."""
-
-    tasks: list[str] = field(default_factory=lambda: ["reach-v3"])
-    """task names, domains or splits ('train', 'test'); domains and splits keep the tasks whose group
-    the checkpoint has"""
-    shots: int = 50
-    """episodes per run"""
-    seeds: int = 3
-    """runs per task; run i's env is seeded first_seed + i (Meta-World: its own hidden goal)"""
-    first_seed: int = 0
-    """env seed of the first run"""
-    variation: dict[str, float] = field(default_factory=dict)
-    """physics variation of every env, e.g. {'viscosity': 0.05} (MuJoCo held-out evaluation)"""
-    prompt_from: Path | None = None
-    """dataset root: prompt run i with the first prompt_steps steps of its task's history i, and run it on
-    that history's env (its env seed, so in Meta-World its hidden goal) instead of first_seed + i"""
-    prompt_steps: int | None = None
-    """prompt length in steps (default: half the model's window)"""
-    batch_envs: int = 64
-    """most envs stepped through one agent at once (the KV cache grows with it)"""
-    reward_input: str = "true"
-    """the reward fed back to the model: 'true' (the env's), 'zero' (0.0) or 'shuffled' (at each step one
-    drawn at random from the rewards the env's current episode has returned so far); returns, success
-    and scores always come from the true rewards (the reward-use ablation). A prompt keeps its stored rewards"""
-
-    def __post_init__(self) -> None:
-        # Checked before any env runs: shots=0 used to crash only after the whole evaluation.
-        check_field_types(self, EvalConfigError)
-        bad = [f"{k}={v}" for k, v in (("shots", self.shots), ("seeds", self.seeds), ("batch_envs", self.batch_envs),
-                                       ("prompt_steps", self.prompt_steps or 1)) if v < 1]
-        bad += [f"first_seed={self.first_seed}"] if self.first_seed < 0 else []  # env seeds are unsigned
-        if bad:
-            raise EvalConfigError(f"{', '.join(bad)}: shots, seeds, batch_envs and prompt_steps must be >= 1, "
-                                  "first_seed >= 0")
-        if not [name for selector in self.tasks for name in selector.split(",") if name.strip()]:
-            raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
-        if self.reward_input not in REWARD_INPUTS:
-            raise EvalConfigError(f"reward_input {self.reward_input!r} is unknown; choose one of "
-                                  f"{', '.join(map(repr, REWARD_INPUTS))}")
 
 
 @dataclass(frozen=True)
@@ -388,7 +339,8 @@ def evaluate(
     return rows, notes + missing
 
 
-def summarize(rows: Sequence[dict[str, Any]], table: str = "paper", plateau_shots: int = 10) -> list[dict[str, Any]]:
+def summarize(rows: Sequence[dict[str, Any]], table: str = "paper",
+              plateau_shots: int = PLATEAU_SHOTS) -> list[dict[str, Any]]:
     """Per task and variation: mean normalized score at the first and last shot and its best
     `plateau_shots`-shot plateau (means over seeds), beside the paper's Vintix score; for tasks with a
     success flag (Meta-World) also the success rate at the first shot and its best plateau (else None).
@@ -449,8 +401,10 @@ def shots_to_show(shots: int, columns: int = 12) -> list[int]:
     return [1, 2, 3, *spread.tolist()]
 
 
-def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = 8, seeds: int = 3, first_seed: int = 1000,
-                     table: str = "ours", metric: str = "score", reward_input: str = "true") -> float:
+def in_context_score(model: Vintix, tasks: Sequence[str], shots: int = TrainConfig.select_shots,
+                     seeds: int = TrainConfig.select_seeds, first_seed: int = TrainConfig.select_first_seed,
+                     table: str = TrainConfig.select_reference, metric: str = TrainConfig.select_metric,
+                     reward_input: str = EvalConfig.reward_input) -> float:
     """The converged in-context score: the mean over the last half of `shots` cold-start shots on
     `tasks`, `seeds` runs each, of the normalized score (`table` reference) or, with `metric`
     'success', of the success flag (over the tasks that have one), with `reward_input` rewards fed

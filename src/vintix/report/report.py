@@ -31,6 +31,7 @@ from matplotlib.ticker import MaxNLocator
 from vintix.atomic import atomic_path, atomic_write_text, check_output_kind
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
+from vintix.evaluate.config import PLATEAU_SHOTS
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci, stratified_iqm_with_ci
 from vintix.tasks import get_task
@@ -312,7 +313,7 @@ def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int)
 
 
 def write_report(folders: list[Path], out: Path, table: str = "paper",
-                 plateau_shots: int = 10, model_card: bool = False) -> tuple[Path, list[str]]:
+                 plateau_shots: int = PLATEAU_SHOTS, model_card: bool = False) -> tuple[Path, list[str]]:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
     `model_card`: put the released model's model-card scores beside each task and domain (for results of
     the imported official model). Returns the report's path and notes (tasks without a reference score,

@@ -1,0 +1,66 @@
+"""What `vintix eval` runs: its settings and their defaults, which the CLI's options take.
+
+Kept apart from `run.py` (torch, the agent, the simulators) so that the CLI can read the defaults when it
+starts without importing any of those.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from vintix.errors import VintixError
+from vintix.fields import check_field_types
+
+REWARD_INPUTS = ("true", "zero", "shuffled")
+"""What `EvalConfig.reward_input` may feed back to the model."""
+PLATEAU_SHOTS = 10
+"""k of the best-k-shot plateau: the converged score that summaries and reports give (fewer when a run has
+fewer shots)."""
+
+
+class EvalConfigError(VintixError, ValueError):
+    """An evaluation setting out of its range (the message names it)."""
+
+
+@dataclass
+class EvalConfig:
+    """What `vintix eval` runs."""
+
+    tasks: list[str] = field(default_factory=lambda: ["reach-v3"])
+    """task names, domains or splits ('train', 'test'); domains and splits keep the tasks whose group
+    the checkpoint has"""
+    shots: int = 50
+    """episodes per run"""
+    seeds: int = 3
+    """runs per task; run i's env is seeded first_seed + i (Meta-World: its own hidden goal)"""
+    first_seed: int = 0
+    """env seed of the first run"""
+    variation: dict[str, float] = field(default_factory=dict)
+    """physics variation of every env, e.g. {'viscosity': 0.05} (MuJoCo held-out evaluation)"""
+    prompt_from: Path | None = None
+    """dataset root: prompt run i with the first prompt_steps steps of its task's history i, and run it on
+    that history's env (its env seed, so in Meta-World its hidden goal) instead of first_seed + i"""
+    prompt_steps: int | None = None
+    """prompt length in steps (default: half the model's window)"""
+    batch_envs: int = 64
+    """most envs stepped through one agent at once (the KV cache grows with it)"""
+    reward_input: str = "true"
+    """the reward fed back to the model: 'true' (the env's), 'zero' (0.0) or 'shuffled' (at each step one
+    drawn at random from the rewards the env's current episode has returned so far); returns, success
+    and scores always come from the true rewards (the reward-use ablation). A prompt keeps its stored rewards"""
+
+    def __post_init__(self) -> None:
+        # Checked before any env runs: shots=0 used to crash only after the whole evaluation.
+        check_field_types(self, EvalConfigError)
+        bad = [f"{k}={v}" for k, v in (("shots", self.shots), ("seeds", self.seeds), ("batch_envs", self.batch_envs),
+                                       ("prompt_steps", self.prompt_steps or 1)) if v < 1]
+        bad += [f"first_seed={self.first_seed}"] if self.first_seed < 0 else []  # env seeds are unsigned
+        if bad:
+            raise EvalConfigError(f"{', '.join(bad)}: shots, seeds, batch_envs and prompt_steps must be >= 1, "
+                                  "first_seed >= 0")
+        if not [name for selector in self.tasks for name in selector.split(",") if name.strip()]:
+            raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
+        if self.reward_input not in REWARD_INPUTS:
+            raise EvalConfigError(f"reward_input {self.reward_input!r} is unknown; choose one of "
+                                  f"{', '.join(map(repr, REWARD_INPUTS))}")
