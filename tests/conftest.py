@@ -49,15 +49,26 @@ def flip_a_byte_of_data(path, dataset: str = "0-6/proprio_observation") -> None:
         f.write(bytes([byte[0] ^ 0xFF]))
 
 
+def mounted_tmpfs(folder: Path, options: str):
+    """A real tmpfs file system mounted at `folder` (created) while the generator runs; the test is
+    skipped where mounting is not allowed."""
+    folder.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True).returncode:
+        pytest.skip("mounting a tmpfs needs root (or CAP_SYS_ADMIN)")
+    yield folder
+    subprocess.run(["umount", "--lazy", str(folder)], check=True)  # lazy: a file a failed test left open
+
+
 @pytest.fixture
 def small_disk(tmp_path):
-    """A real 8 MB file system (tmpfs), for a disk that fills up; skipped where mounting is not allowed."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=8m", "tmpfs", str(disk)], capture_output=True).returncode:
-        pytest.skip("mounting a tmpfs needs root (or CAP_SYS_ADMIN)")
-    yield disk
-    subprocess.run(["umount", "--lazy", str(disk)], check=True)  # lazy: a file a failed test left open
+    """An 8 MB file system, for a disk that fills up."""
+    yield from mounted_tmpfs(tmp_path / "disk", "size=8m")
+
+
+@pytest.fixture
+def read_only_folder(tmp_path):
+    """A folder on a read-only file system (permission bits would not stop the root user tests run as)."""
+    yield from mounted_tmpfs(tmp_path / "read-only", "size=1m,ro")
 
 
 def fill_up(disk: Path) -> Path:

@@ -8,6 +8,7 @@ import sys
 import pytest
 from typer.testing import CliRunner
 
+from conftest import fill_up
 from vintix.cli import app
 
 runner = CliRunner()
@@ -227,14 +228,25 @@ def test_an_output_folder_holding_another_kind_of_output_is_refused(tmp_path, ho
     assert sorted(folder.rglob("*")) == before  # nothing written
 
 
-def test_a_full_disk_ends_in_one_line_that_says_what_to_do(tmp_path, monkeypatch):
-    import errno
-
-    def disk_full(path, text):
-        raise OSError(errno.ENOSPC, "No space left on device", str(path))
-
-    monkeypatch.setattr("vintix.cli.atomic_write_text", disk_full)  # the disk filling up as the table is written
-    result = runner.invoke(app, ["check-envs", "point-goal-v1", "--episodes", "1", "--out", str(tmp_path / "t.csv")])
+def test_a_full_disk_ends_in_one_line_that_says_what_to_do(small_disk):
+    fill_up(small_disk)
+    result = runner.invoke(app, ["check-envs", "point-goal-v1", "--episodes", "1", "--out", str(small_disk / "t.csv")])
     output = " ".join(result.output.split())  # rich wraps long lines
     assert result.exit_code == 2 and "Traceback" not in output
     assert "No space left on device" in output and "the disk is full: free space or write elsewhere" in output
+    assert sorted(p.name for p in small_disk.iterdir()) == ["ballast"]  # no t.csv.partial
+
+
+@pytest.mark.parametrize("command", [
+    ["collect", "--task", "reach-v3", "--steps", "100", "--out", "{ro}/data"],
+    ["eval", "--checkpoint", "point-goal", "--tasks", "point-goal-v1", "--shots", "1", "--seeds", "1", "--out",
+     "{ro}/results"],
+    ["demonstrator", "eval", "--task", "reach-v3", "--episodes", "1", "--out", "{ro}/scores.csv"],
+    ["check-envs", "InvertedPendulum-v5", "--episodes", "1", "--out", "{ro}/check.csv"],
+])
+def test_an_output_on_a_read_only_file_system_is_refused_before_any_work(read_only_folder, command):
+    """It was found only when the results were written, after the whole measurement."""
+    result = runner.invoke(app, [part.format(ro=read_only_folder) for part in command])
+    output = " ".join(result.output.split())
+    assert result.exit_code == 2 and f"{read_only_folder} is not writable here (a read-only file system" in output
+    assert "measured" not in output and "wrote" not in output, output

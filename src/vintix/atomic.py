@@ -42,11 +42,15 @@ def check_output_folder(folder: str | os.PathLike[str]) -> None:
 
 
 def _check_no_file_above(path: Path, folders: Iterable[Path]) -> None:
-    """Raise if the nearest of `folders` (those `path` needs, innermost first) that exists is a file."""
+    """Raise if the nearest of `folders` (those `path` needs, innermost first) that exists is a file, or a
+    folder this process may not write in (a read-only file system, or no permission)."""
     blocking = next((p for p in folders if p.exists()), None)
     if blocking is not None and not blocking.is_dir():
         raise OutputPathError(f"cannot write {path}: {blocking} is a file, not a directory; choose another output "
                               "path or move the file")
+    if blocking is not None and not os.access(blocking, os.W_OK | os.X_OK):
+        raise OutputPathError(f"cannot write {path}: {blocking} is not writable here (a read-only file system, or "
+                              "no permission); write elsewhere (--out) or fix the folder's permissions")
 
 
 def make_parent_dirs(path: str | os.PathLike[str]) -> None:
