@@ -592,7 +592,9 @@ def straight_and_killed_runs(args: list[str], name: str, marker: str) -> tuple[P
     straight, killed = WORK / f"{name}-straight", WORK / f"{name}-killed"
     code, output = invoke(*args, "--out", straight)
     assert code == 0, output
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    # The process computes with as many threads as this one (an earlier test's `eval` may have set 1):
+    # float sums over another thread count differ in their last bits.
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "OMP_NUM_THREADS": str(torch.get_num_threads())}
     process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
