@@ -20,9 +20,12 @@ Re-running into a folder whose histories were made with other settings is refuse
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
 import shutil
 import signal
+import sys
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -38,7 +41,7 @@ from vintix.atomic import check_output_kind, folder_lock
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
-from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, history_bytes
+from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, UNFINISHED_FILES, history_bytes
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
@@ -352,13 +355,25 @@ def _start_worker() -> None:
 
     torch.set_num_threads(1)  # one process per core: threads inside would only contend
     # The parent owns its workers: Ctrl-C reaches it (and the whole process group), and it ends every
-    # worker with SIGTERM, which unwinds the worker quietly so its unfinished files are removed.
+    # worker with SIGTERM, on which a worker deletes its unfinished files and exits.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _exit_quietly)
+    if sys.platform == "linux":
+        # A parent that cannot end its workers (kill -9) would leave them blocked forever on a queue it no
+        # longer feeds: Linux sends them SIGTERM when it dies (prctl PR_SET_PDEATHSIG).
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+_PR_SET_PDEATHSIG = 1
+"""linux/prctl.h"""
 
 
 def _exit_quietly(signum: int, frame: object) -> None:
-    raise SystemExit(128 + signum)
+    # Deleting the unfinished histories and leaving at once, rather than raising: an exception raised
+    # wherever the signal lands (a destructor, say) would be printed, not unwound.
+    for path in list(UNFINISHED_FILES):
+        path.unlink(missing_ok=True)
+    os._exit(128 + signum)
 
 
 def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, workers: int = 1,

@@ -327,6 +327,11 @@ def history_bytes(spec: TaskSpec, steps: int) -> int:
 # Writer
 
 
+UNFINISHED_FILES: set[Path] = set()
+"""The partial files of this process's open writers: what a process ended by a signal deletes on its
+way out (`vintix.collect` workers), since it does not unwind through the writers."""
+
+
 @contextmanager
 def _write_errors_as_os_errors(path: Path) -> Iterator[None]:
     """HDF5's failed writes as the OSError of the system call that failed (a full disk is ENOSPC), naming
@@ -391,6 +396,7 @@ class LearningHistoryWriter:
         self._flushed = 0
         self._last_step = -1
         make_parent_dirs(self.path)
+        UNFINISHED_FILES.add(self._partial)
         # No chunk cache: each chunk reaches the disk inside the call that writes it, so a full disk is an
         # OSError there, not a write HDF5 retries when it frees the dataset (errors it can only print,
         # then a segfault).
@@ -533,6 +539,7 @@ class LearningHistoryWriter:
             self.abort()
             raise
         self._file = None
+        UNFINISHED_FILES.discard(self._partial)
         return self.path
 
     def abort(self) -> None:
@@ -544,6 +551,7 @@ class LearningHistoryWriter:
             except (OSError, RuntimeError):  # its last writes failed (a full disk): the file is being discarded
                 pass
         self._partial.unlink(missing_ok=True)
+        UNFINISHED_FILES.discard(self._partial)
 
     def __enter__(self) -> LearningHistoryWriter:
         return self
