@@ -108,11 +108,21 @@ def atomic_save_tensors(tensors: dict[str, torch.Tensor], path: str | os.PathLik
         try:
             save_file(tensors, str(temporary), metadata=metadata)
         except SafetensorError as error:
-            found = re.search(r"os error (\d+)", str(error))
-            if found is None:
+            translated = os_error_in(error, r"os error (\d+)", path)
+            if translated is None:
                 raise
-            number = int(found.group(1))
-            raise OSError(number, os.strerror(number), str(path)) from error
+            raise translated from error
+
+
+def os_error_in(error: Exception, pattern: str, path: str | os.PathLike[str]) -> OSError | None:
+    """The OSError, naming `path`, of the system call behind a library's `error` whose text alone carries
+    the errno (`pattern`'s one group), so that a full disk reads as one wherever it happens; None if the
+    text has none."""
+    found = re.search(pattern, str(error))
+    if found is None:
+        return None
+    number = int(found.group(1))
+    return OSError(number, os.strerror(number), str(path))
 
 
 @contextmanager

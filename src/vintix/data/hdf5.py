@@ -41,7 +41,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from vintix.atomic import atomic_write_text, make_parent_dirs, partial_path, publish
+from vintix.atomic import atomic_write_text, make_parent_dirs, os_error_in, partial_path, publish
 from vintix.errors import DatasetError, VintixError
 from vintix.tasks.custom import register_specs
 from vintix.tasks.registry import TaskSpec
@@ -341,10 +341,10 @@ def _write_errors_as_os_errors(path: Path) -> Iterator[None]:
     except (OSError, RuntimeError) as error:
         if isinstance(error, OSError) and error.errno is not None:
             raise OSError(error.errno, os.strerror(error.errno), str(path)) from error
-        found = re.search(r"errno = (\d+)", str(error))
-        if found is None:
+        translated = os_error_in(error, r"errno = (\d+)", path)
+        if translated is None:
             raise
-        raise OSError(int(found.group(1)), os.strerror(int(found.group(1))), str(path)) from error
+        raise translated from error
 
 
 class LearningHistoryWriter:
