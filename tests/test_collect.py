@@ -232,6 +232,30 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+def start_collection(args: list[str], out: Path) -> subprocess.Popen:
+    """`python -m vintix *args --out out` as a real process, its output (stdout and stderr) piped."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    return subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(out)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def wait_for_partial_files(task_dir: Path, count: int) -> None:
+    """Until `count` histories are being written in `task_dir` (or two minutes have passed)."""
+    deadline = time.monotonic() + 120
+    while len(list(task_dir.glob("*.partial"))) < count and time.monotonic() < deadline:
+        time.sleep(0.02)
+
+
+def assert_rerun_gives_the_uninterrupted_bytes(args: list[str], interrupted: Path, straight: Path,
+                                               histories: int) -> None:
+    for out in (interrupted, straight):
+        output, _ = (process := start_collection(args, out)).communicate(timeout=300)
+        assert process.returncode == 0, output
+    for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(histories)]:
+        assert filecmp.cmp(straight / "metaworld/reach-v3" / name, interrupted / "metaworld/reach-v3" / name,
+                           shallow=False), name
+
+
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGKILL], ids=["kill", "kill -9"])
 def test_a_killed_multi_worker_collection_ends_its_workers_and_the_rerun_is_identical(tmp_path, signum):
     """`kill` (SIGTERM) or `kill -9` of `vintix collect --workers 2` mid-run: the collection and both
@@ -240,13 +264,8 @@ def test_a_killed_multi_worker_collection_ends_its_workers_and_the_rerun_is_iden
     args = ["collect", "--task", "reach-v3", "--histories", "4", "--steps", "2000", "--envs-per-batch", "1",
             "--workers", "2"]
     killed = tmp_path / "killed"
-    task_dir = killed / "metaworld" / "reach-v3"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    deadline = time.monotonic() + 120
-    while len(list(task_dir.glob("*.partial"))) < 2 and time.monotonic() < deadline:
-        time.sleep(0.05)
+    process = start_collection(args, killed)
+    wait_for_partial_files(killed / "metaworld" / "reach-v3", 2)
     workers = _children(process.pid)
     try:
         assert len(workers) >= 2, "both workers should be writing by now"
@@ -263,15 +282,8 @@ def test_a_killed_multi_worker_collection_ends_its_workers_and_the_rerun_is_iden
         for pid in workers | {process.pid}:
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
-    assert not list(task_dir.glob("*.partial"))
-
-    straight = tmp_path / "straight"
-    for out in (killed, straight):
-        result = subprocess.run([sys.executable, "-m", "vintix", *args, "--out", str(out)], env=env,
-                                capture_output=True, text=True, timeout=300)
-        assert result.returncode == 0, result.stdout + result.stderr
-    for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(4)]:
-        assert filecmp.cmp(straight / "metaworld/reach-v3" / name, task_dir / name, shallow=False), name
+    assert not list(killed.rglob("*.partial"))
+    assert_rerun_gives_the_uninterrupted_bytes(args, killed, tmp_path / "straight", histories=4)
 
 
 def test_a_disk_that_fills_up_mid_collection_ends_it_with_the_fix_and_no_unfinished_file(tmp_path, small_disk):
@@ -280,24 +292,12 @@ def test_a_disk_that_fills_up_mid_collection_ends_it_with_the_fix_and_no_unfinis
     completes to the bytes of an uninterrupted collection."""
     args = ["collect", "--task", "reach-v3", "--histories", "2", "--steps", "2000", "--envs-per-batch", "1"]
     out = small_disk / "data"
-    task_dir = out / "metaworld" / "reach-v3"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(out)], env=env,
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    deadline = time.monotonic() + 120
-    while not list(task_dir.glob("*.partial")) and time.monotonic() < deadline:
-        time.sleep(0.02)
+    process = start_collection(args, out)
+    wait_for_partial_files(out / "metaworld" / "reach-v3", 1)
     ballast = fill_up(small_disk)
     output, _ = process.communicate(timeout=120)
     assert process.returncode == 2, output
     assert "No space left on device" in output and "the disk is full" in output and "Traceback" not in output, output
-    assert not list(task_dir.glob("*.partial"))
-
+    assert not list(out.rglob("*.partial"))
     ballast.unlink()
-    straight = tmp_path / "straight"
-    for folder in (out, straight):
-        result = subprocess.run([sys.executable, "-m", "vintix", *args, "--out", str(folder)], env=env,
-                                capture_output=True, text=True, timeout=300)
-        assert result.returncode == 0, result.stdout + result.stderr
-    for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(2)]:
-        assert filecmp.cmp(straight / "metaworld/reach-v3" / name, task_dir / name, shallow=False), name
+    assert_rerun_gives_the_uninterrupted_bytes(args, out, tmp_path / "straight", histories=2)
