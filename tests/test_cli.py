@@ -159,6 +159,25 @@ def test_help_keeps_the_optional_extra_to_install_for_ray():
         assert result.exit_code == 0 and "'vintix[cluster]'" in result.output  # not eaten as rich markup
 
 
+def test_collects_options_default_to_the_collection_plan_and_noise_schedule():
+    # `vintix --help` must not import the collector (3.5 s, torch), so the options restate these
+    # defaults; this keeps the two from drifting apart.
+    import inspect
+    import typing
+
+    from vintix.cli import collect
+    from vintix.collect import CollectionPlan, NoiseSchedule
+
+    options = inspect.signature(collect).parameters
+    plan = CollectionPlan("reach-v3", 1, 1)
+    assert {name: options[name].default for name in ("curvature", "pilot_steps")} == {
+        "curvature": NoiseSchedule().curvature, "pilot_steps": NoiseSchedule().pilot_steps}
+    assert {name: options[name].default for name in ("seed", "envs_per_batch")} == {
+        "seed": plan.seed, "envs_per_batch": plan.envs_per_batch}
+    fraction_help = typing.get_args(typing.get_type_hints(collect, include_extras=True)["noise_free_fraction"])[1].help
+    assert options["noise_free_fraction"].default is None and f"{NoiseSchedule().noise_free_fraction}" in fraction_help
+
+
 def test_collect_into_a_folder_made_with_other_settings_says_so(tmp_path):
     command = ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "100", "--out", str(tmp_path)]
     assert runner.invoke(app, command).exit_code == 0
