@@ -59,6 +59,8 @@ class Episode:
     length: int
     success: float | None
     """Meta-World's success flag (1 if reached at any step); None for envs without one"""
+    last_observation: np.ndarray
+    """The env's observation after the episode's last step (where it ended: Meta-World's hand at [:3])"""
 
 
 def parse_variation(items: Sequence[str]) -> dict[str, float]:
@@ -189,7 +191,7 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
             if "success" in info:
                 success[i] = max(success[i] or 0.0, float(info["success"]))
             if terminated or truncated:
-                episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i]))
+                episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i], observation))
                 bar.update(1)
                 observation, _ = envs[i].reset()
                 feeds[i].new_episode()
