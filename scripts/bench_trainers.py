@@ -62,7 +62,8 @@ def main() -> None:
         if importlib.util.find_spec(module) is None:
             print(f"{package} is not installed (`pip install {package}`): its trainers are skipped")
     for name, algorithm in found.items():
-        print(f"{args.task}  {name:22s} {steps_per_second(algorithm, args.task, args.warmup, args.steps):6.0f} env steps/s")
+        speed = steps_per_second(algorithm, args.task, args.warmup, args.steps)
+        print(f"{args.task}  {name:22s} {speed:6.0f} env steps/s")
 
 
 if __name__ == "__main__":

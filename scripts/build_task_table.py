@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 
 META_WORLD_TEST = {"bin-picking", "box-close", "door-lock", "door-unlock", "hand-insert"}
-BIDEXHANDS_TEST = {"Hand-Door-Close-Outward", "Hand-Door-Open-Inward", "Hand-Door-Open-Outward", "Hand-Kettle", "Hand-Over"}
+BIDEXHANDS_TEST = {"Hand-Door-Close-Outward", "Hand-Door-Open-Inward", "Hand-Door-Open-Outward", "Hand-Kettle",
+                   "Hand-Over"}
 # gymnasium's max_episode_steps for the v5 MuJoCo tasks.
 MUJOCO_EPISODE_LENGTH = {"Reacher": 50, "Pusher": 100}
 
