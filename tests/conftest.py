@@ -1,11 +1,19 @@
 """Shared helpers for tests that drive real environments."""
 
+import os
 import subprocess
+import sys
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+
+
+def child_env(**extra: str) -> dict[str, str]:
+    """The environment of a `python -m vintix` child process: this one's, with its import path, so the
+    child runs the same vintix (the source tree may be first on the path, not installed), plus `extra`."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), **extra}
 
 
 @pytest.fixture(autouse=True)

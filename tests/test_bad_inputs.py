@@ -33,6 +33,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+from conftest import child_env
 from vintix.cli import app
 from vintix.errors import VintixError
 
@@ -594,7 +595,7 @@ def straight_and_killed_runs(args: list[str], name: str, marker: str) -> tuple[P
     assert code == 0, output
     # The process computes with as many threads as this one (an earlier test's `eval` may have set 1):
     # float sums over another thread count differ in their last bits.
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "OMP_NUM_THREADS": str(torch.get_num_threads())}
+    env = child_env(OMP_NUM_THREADS=str(torch.get_num_threads()))
     process = subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(killed)], env=env,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
@@ -1102,7 +1103,7 @@ documented("tasks", "get_task('Pusher-v4') is Pusher-v5",
 
 
 def python_dash_m() -> str | None:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "industrial_benchmark"],
                             capture_output=True, text=True, env=env, timeout=120)
     return None if result.returncode == 0 and "21 tasks" in result.stdout else f"exit {result.returncode}"

@@ -1,14 +1,13 @@
 """The `vintix` command line."""
 
 import csv
-import os
 import subprocess
 import sys
 
 import pytest
 from typer.testing import CliRunner
 
-from conftest import fill_up
+from conftest import child_env, fill_up
 from vintix.cli import app
 
 runner = CliRunner()
@@ -142,8 +141,7 @@ def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_
 
 
 def test_python_dash_m_vintix_runs_the_cli():
-    # Same package as this test run (the source tree may be first on PYTHONPATH, not installed).
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "mujoco"],
                             capture_output=True, text=True, env=env, timeout=120)
     assert result.returncode == 0, result.stderr

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
-from conftest import fill_up
+from conftest import child_env, fill_up
 from vintix.atomic import FolderInUseError, folder_lock
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.collect.bench import benchmark_collection
@@ -234,7 +234,7 @@ def _alive(pid: int) -> bool:
 
 def start_collection(args: list[str], out: Path) -> subprocess.Popen:
     """`python -m vintix *args --out out` as a real process, its output (stdout and stderr) piped."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    env = child_env()
     return subprocess.Popen([sys.executable, "-m", "vintix", *args, "--out", str(out)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
