@@ -6,8 +6,7 @@ precisions and kernels a CPU offers: why batching envs cannot make that step ≥
 
 Every env attends over its own cache, so the step reads all of it whatever the batching; a cheaper
 step would need fewer bytes per key (half precision) or a kernel that reads them faster. The model
-uses the first row (fp32 matmul, `vintix.model.model.attention`); docs/agent.md and the issue notes
-quote this table.
+uses the first row (fp32 matmul, `vintix.model.model.attention`); docs/benchmarks.md quotes this table.
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ Plays a model cold on `--seeds` envs (one hidden goal each, seeds training never
 episodes, then compares, per episode, how far the hand ended from its own env's goal with how far it
 ended from the other envs' goals. A model that reads its rewards ends nearer its own goal (ratio well
 below 1); one that heads for a place every goal shares, such as the goal box's middle, ends as near to
-all of them (ratio about 1). Issue target for reach-v3 at convergence: a ratio of 0.5 or less.
+all of them (ratio about 1). The project's target for reach-v3 at convergence: a ratio of 0.5 or less
+(docs/in-context-rl.md).
 
     python scripts/goal_distance.py CHECKPOINT [--shots 20] [--seeds 20] [--first-seed 100]
         [--reward-input true|zero|shuffled] [--out FILE.csv]
