@@ -130,3 +130,25 @@ def test_the_shipped_goal_blind_table_covers_every_metaworld_task():
     table = read_goal_blind()
     assert len([t for t in table if t.endswith("-v3")]) == 50
     assert table["reach-v3"].goal_blind_success <= 0.4 and table["reach-v3"].true_goal_success >= 0.9
+
+
+def test_probe_then_sample_records_the_probe_then_the_expert_as_its_target_and_plays_guesses_after_the_probe(
+        tmp_path):
+    steps = 3 * EPISODE_LENGTH
+    plan = CollectionPlan("point-goal-v1", histories=3, steps=steps, schedule=NO_NOISE, envs_per_batch=3,
+                          behaviour="probe-then-sample")
+    histories = []
+    for summary in collect(plan, tmp_path):
+        with LearningHistory(summary.path) as history:
+            rows = history.read(0, steps, demonstrator_action=True)
+            goal = make_env("point-goal-v1", seed=int(history.attrs["env_seed"])).unwrapped.true_goal
+        histories.append((rows, goal))
+    probe = slice(0, EPISODE_LENGTH)
+    for rows, goal in histories:
+        assert np.array_equal(rows["action"][probe], histories[0][0]["action"][probe])  # nothing known yet
+        assert np.array_equal(rows["demonstrator_action"][probe], rows["action"][probe])  # the target: the probe
+        later = slice(EPISODE_LENGTH, steps)
+        expert = load_demonstrator("point-goal-v1").act_toward(rows["observation"][later], goal[None])
+        assert np.allclose(rows["demonstrator_action"][later], expert, atol=1e-6)  # then: the goal-aware expert
+    guesses = [rows["action"][EPISODE_LENGTH:] - rows["demonstrator_action"][EPISODE_LENGTH:] for rows, _ in histories]
+    assert any(np.abs(miss).max() > 0 for miss in guesses)  # it plays a drawn goal, which may miss

@@ -11,9 +11,9 @@ Each history records the settings it was made with (root attributes: env seed, b
 noise schedule, with the knots its pilot fitted if it had one, and the demonstrator's behaviour when
 it is not the expert's) and, per step, the demonstrator's action before noise
 (``demonstrator_action``). A demonstrator that infers the hidden goal from rewards
-(``behaviour: posterior-sampling`` or ``probing``, `vintix.demonstrators.posterior`) plays the history, and the
+(``behaviour:`` other than ``expert``, `vintix.demonstrators.posterior`) plays the history, and the
 goal-aware expert's action is what ``demonstrator_action`` records: the action a model can only
-predict by reading the context's rewards.
+predict by reading the context's rewards (``probe-then-sample`` records its probe in the first episode).
 Re-running into a folder whose histories were made with other settings is refused
 (`CollectionSettingsError`): skipping them as "already done" would silently keep the wrong data.
 """
@@ -78,8 +78,9 @@ class CollectionPlan:
     """Histories stepped in lockstep in one process (one batched demonstrator call per step; more
     histories per call leave more of the process's time to the simulator, `vintix bench collect`)."""
     behaviour: str = "expert"
-    """How the demonstrator plays: 'expert' (sees the hidden goal), or 'posterior-sampling' / 'probing'
-    (infers it from the rewards it earns; Meta-World and toy tasks; `vintix.demonstrators.posterior`)."""
+    """How the demonstrator plays: 'expert' (sees the hidden goal), or 'posterior-sampling' / 'probing' /
+    'probe-then-sample' (infers it from the rewards it earns; Meta-World and toy tasks;
+    `vintix.demonstrators.posterior`)."""
     demonstrator: str | None = None
     """A demonstrator from outside the package: ``module:callable`` (called with the task name, returns a
     Demonstrator), ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only) or

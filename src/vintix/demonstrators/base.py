@@ -24,17 +24,18 @@ class Demonstrator(Protocol):
         ...
 
 
-BEHAVIOURS = ("expert", "posterior-sampling", "probing")
+BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample")
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
-rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior, or
-probing the goal box's corners in the first episode and aiming later ones at the likeliest goal."""
+rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
+probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
+probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert)."""
 
 
 def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
                       source: str | None = None) -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
-    tasks that have none. `behaviour="posterior-sampling"` or `"probing"` wraps a scripted expert of a
+    tasks that have none. A `behaviour` other than "expert" wraps a scripted expert of a
     hidden-goal task (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards.
     `source`: a demonstrator from outside the package instead (`external_demonstrator`)."""
     spec = get_task(task)
