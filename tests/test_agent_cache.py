@@ -3,10 +3,12 @@ fixed memory, prompt chunks equal single steps."""
 
 from __future__ import annotations
 
+import pytest
 import torch
 
 from inference_model import one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import KVCache, banded_forward, cached_backbone
+from vintix.model.model import ModelConfigError
 
 WINDOW = 16
 
@@ -19,8 +21,8 @@ def cached_outputs(model, tokens: torch.Tensor, chunk: int = 0) -> torch.Tensor:
     return torch.cat(outputs, dim=1)
 
 
-def make(steps: int, batch: int = 3):
-    model = tiny_model(context_len=WINDOW)
+def make(steps: int, batch: int = 3, **overrides: int):
+    model = tiny_model(context_len=WINDOW, **overrides)
     torch.manual_seed(1)
     with torch.no_grad():
         # At init the residual branches whisper (GPT-2 scaling); louder weights let every token
@@ -50,6 +52,26 @@ def test_after_the_window_is_full_the_cache_is_a_banded_forward_over_the_whole_r
     t = 2 * WINDOW
     exact_window = model.backbone(tokens[:, t - WINDOW + 1 : t + 1])[:, -1]
     assert (cached[:, t] - exact_window).abs().max() > 1e-3
+
+
+@torch.inference_mode()
+def test_a_window_that_keeps_the_first_steps_slides_only_the_rest():
+    keep = 5
+    model, tokens = make(3 * WINDOW + 5, keep_first_steps=keep)
+    cache = KVCache.for_model(model, tokens.shape[0])
+    cached = torch.cat([cached_backbone(model, tokens[:, t : t + 1], cache) for t in range(tokens.shape[1])], dim=1)
+    torch.testing.assert_close(cached, banded_forward(model, tokens, WINDOW, keep_first=keep), rtol=1e-5, atol=1e-5)
+    end = tokens.shape[1]
+    assert all(sorted(row) == [*range(keep), *range(end - WINDOW + keep, end)] for row in cache.positions.tolist())
+    # the kept steps are heard: the outputs differ from a plain sliding window's once the run outgrows it
+    plain = banded_forward(model, tokens, WINDOW)
+    torch.testing.assert_close(cached[:, :WINDOW], plain[:, :WINDOW], rtol=1e-5, atol=1e-5)
+    assert (cached[:, -1] - plain[:, -1]).abs().max() > 1e-3
+
+
+def test_a_window_must_have_room_to_slide_past_the_steps_it_keeps():
+    with pytest.raises(ModelConfigError, match="keep_first_steps"):
+        tiny_model(context_len=WINDOW, keep_first_steps=WINDOW)
 
 
 @torch.inference_mode()

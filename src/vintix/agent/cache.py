@@ -13,6 +13,12 @@ that step is hidden from its later tokens and its own clock does not move, so it
 their distances are what they would have been without the hole; only its window holds one token less
 until the hidden slot is overwritten.
 
+A window can keep a run's first `keep_first` steps for good (`ModelConfig.keep_first_steps`): its first
+`keep_first` slots are never overwritten and the ring turns over the others. A model trained only on
+windows that begin at a history's first, exploring episode then keeps seeing such a window as the run
+goes on. For ALiBi, the kept steps count as if they came right before the oldest sliding step, so
+every distance within the window is one that a training window holds.
+
 Semantics once the window is full (the paper's, and Mistral's sliding-window attention): cached
 keys and values keep the hidden states they were computed with, when their token was new and saw
 its own last `window` tokens. A cached run therefore equals one forward over the *whole* run with a
@@ -44,13 +50,17 @@ class KVCache:
 
     def __init__(
         self, n_layers: int, batch: int, n_heads: int, head_dim: int, window: int,
-        device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32,
+        device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32, keep_first: int = 0,
     ) -> None:
+        if not 0 <= keep_first < window:
+            raise ValueError(f"keep_first={keep_first} must lie in [0, window={window})")
         shape = (n_layers, batch, n_heads, window, head_dim)
         # Allocated once: memory is fixed by (layers, batch, window), never by how long the run is.
         self.keys = torch.zeros(shape, device=device, dtype=dtype)
         self.values = torch.zeros(shape, device=device, dtype=dtype)
         self.window = window
+        self.keep_first = keep_first
+        """slots that keep the run's first steps for good; the ring turns over the rest"""
         self.positions = torch.zeros(batch, window, dtype=torch.long, device=device)
         """per env, the position in its own sequence of the token in each slot (meaningful for the first
         `filled` slots; `HIDDEN` for a slot the env sat out)"""
@@ -70,7 +80,7 @@ class KVCache:
                     "Step fewer envs in one agent (vintix eval --seeds), or use a model with a shorter context_len",
                     weight.device)
         return cls(config.n_layers, batch, config.n_heads, config.d_model // config.n_heads,
-                   config.context_len, weight.device, weight.dtype)
+                   config.context_len, weight.device, weight.dtype, config.keep_first_steps)
 
     @property
     def filled(self) -> int:
@@ -91,17 +101,30 @@ class KVCache:
                 "steps (and cannot skip envs); feed them one at a time"
             )
         steps = torch.arange(new_tokens, device=self.positions.device)
-        self._slots = (self.length + steps) % self.window
+        index, kept = self.length + steps, self.keep_first
+        self._slots = torch.where(index < self.window, index, kept + (index - kept) % (self.window - kept))
         query_positions = self.clocks.unsqueeze(1) + steps  # [B, T]
         self.positions[:, self._slots] = query_positions
         self.length += new_tokens
-        bias = alibi_bias(query_positions, self.positions[:, : self.filled], slopes)
+        bias = alibi_bias(query_positions, self._attended_positions(), slopes)
         if skip is None:
             self.clocks += new_tokens
         else:
             self.clocks += (~skip).long()
             self.positions[skip.nonzero().squeeze(1).unsqueeze(1), self._slots] = HIDDEN
         return bias
+
+    def _attended_positions(self) -> torch.Tensor:
+        """Per env, the positions the bias is built from ``[B, filled]``: the slots' own, except that once
+        the ring has overwritten a step, the kept first steps move up to just before the oldest sliding one."""
+        positions = self.positions[:, : self.filled]
+        if not self.keep_first or self.length <= self.window:
+            return positions
+        kept, sliding = positions[:, : self.keep_first], positions[:, self.keep_first:]
+        oldest_sliding = sliding.min(dim=1).values  # a hidden slot's HIDDEN is never the least
+        newest_kept = kept.masked_fill(kept == HIDDEN, -1).max(dim=1).values
+        shift = (oldest_sliding - newest_kept - 1).unsqueeze(1)
+        return torch.cat([torch.where(kept == HIDDEN, kept, kept + shift), sliding], dim=1)
 
     def keep(self, envs: torch.Tensor) -> None:
         """Keep only the batch rows `envs` (indices, in that order). The rows share one clock, so
@@ -134,12 +157,17 @@ def cached_backbone(model: Vintix, tokens: torch.Tensor, cache: KVCache, skip: t
     return model.ln_f(x)
 
 
-def banded_forward(model: Vintix, tokens: torch.Tensor, window: int) -> torch.Tensor:
+def banded_forward(model: Vintix, tokens: torch.Tensor, window: int, keep_first: int = 0) -> torch.Tensor:
     """Reference for the cache's semantics: the backbone over a whole run ``[B, T, d_model]`` (T may
-    exceed the context) where every token attends to itself and the ``window - 1`` before it."""
+    exceed the context) where every token attends to itself and the ``window - 1`` before it; with
+    `keep_first`, to the run's first `keep_first` tokens and the ``window - keep_first - 1`` before it,
+    the first ones counted as right before those once the ring has overwritten a step."""
     positions = torch.arange(tokens.shape[1], device=tokens.device)
-    bias = alibi_bias(positions, positions, model.alibi_slopes)
-    too_old = positions.view(-1, 1) - positions.view(1, -1) >= window
+    query, key = positions.view(-1, 1), positions.view(1, -1)
+    kept = key < keep_first
+    seen_at = torch.where(kept & (query >= window), key + query - window + 1, key)  # [T query, T key]
+    bias = alibi_bias(positions.view(-1, 1), seen_at, model.alibi_slopes)[:, :, 0].transpose(0, 1)  # [H, T, T]
+    too_old = ~kept & (query - key >= window - keep_first)
     bias = bias.masked_fill(too_old, float("-inf")).to(tokens.dtype)
     x = tokens
     for block in model.blocks:

@@ -62,6 +62,11 @@ class ModelConfig:
     """hidden layers (width d_model) in each group's action head; 3 as in the official release"""
     context_len: int = 1024
     """longest window in steps (tokens) the model is trained on and attends over at inference"""
+    keep_first_steps: int = 0
+    """steps at the start of a run that the agent keeps in its window for good, sliding only the rest
+    (`vintix.agent.cache`): for a model trained on windows that all begin at a history's first, exploring
+    episode, so that its context still looks like one when the run outgrows the window; 0: a plain
+    sliding window"""
     dropout: float = 0.0
     """dropout on attention probabilities and residual branches (the paper lists none; on CPU any
     attention dropout forces the unfused attention path, about 2x slower at 1024 steps)"""
@@ -104,6 +109,9 @@ class ModelConfig:
                 "sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor and std_epsilon >= 0 and not "
                 f"both 0; got {', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}"
                 f"{'' if small else f', std_epsilon={self.std_epsilon}'}")
+        if not 0 <= self.keep_first_steps < self.context_len:
+            raise ModelConfigError(f"keep_first_steps must lie in [0, context_len = {self.context_len}), got "
+                                   f"{self.keep_first_steps}: the window needs room to slide")
         if self.d_model % self.n_heads:
             raise ModelConfigError(
                 f"d_model = {self.obs_emb_dim}+{self.act_emb_dim}+{self.rew_emb_dim} = "
