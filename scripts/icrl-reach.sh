@@ -2,8 +2,9 @@
 # Rebuild the icrl-reach model and its reward-ablation results from nothing, on a CPU.
 #   scripts/icrl-reach.sh [WORK_DIR]      (default: icrl-reach/; collection and training resume where they stopped)
 # Steps: 2,000 hidden reach goals, 5 episodes each, played by a demonstrator that never sees the goal
-# (it probes the goal box in its first episode, then aims at the goal that best explains the rewards so far;
-# src/vintix/collect/recipes/icrl-reach.yaml); plain AD of its actions, checkpoints chosen by
+# (it probes the goal box in its first episode, then aims at goals drawn from its posterior given the rewards
+# so far; src/vintix/collect/recipes/icrl-reach.yaml); a model trained on its recorded target (the probe,
+# then the goal-aware expert's action), checkpoints chosen by
 # cold-start success on unseen goals (src/vintix/train/configs/icrl-reach.yaml); cold-start
 # evaluation on 20 unseen goals with true, zero and shuffled rewards fed back; the report with the
 # reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation.
@@ -20,7 +21,7 @@ for rewards in true zero shuffled; do
 done
 folders=("$W"/results/{true,zero,shuffled})
 if [[ ${NR:-0} == 1 ]]; then
-  $V train --config icrl-reach --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={reward_encoder: mlp, rew_emb_dim: 16, obs_emb_dim: 56, act_emb_dim: 56, context_len: 500, mask_reward: true}'
+  $V train --config icrl-reach --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={reward_encoder: mlp, rew_emb_dim: 16, obs_emb_dim: 56, act_emb_dim: 56, context_len: 500, keep_first_steps: 100, mask_reward: true}'
   $V eval --checkpoint "$W/runs/nr" --label "AD without rewards" "${EVAL[@]}" --out "$W/results/nr"
   folders+=("$W/results/nr")
 fi
