@@ -19,7 +19,7 @@ install: $(INSTALLED)
 # The reward-ablation test on the shipped models, cold start on goals and seeds training never used
 # (README, "In-context RL"; docs/in-context-rl.md): each plays with the true rewards fed back, then with zeros; scores and
 # success always come from the true returns. point-goal (the toy hidden-goal task) shows rewards doing
-# the work; icrl-reach (Meta-World reach) shows them doing it in shots 2-3, then a model that forgets;
+# the work, and icrl-reach (Meta-World reach) too: it probes in shot 1, then reaches the goal the rewards revealed;
 # cpu-suite (Meta-World, Industrial Benchmark, MuJoCo) shows a model whose gain over shots does not
 # come from rewards. Per-shot tables of score and success rate, then a report with the reward-use gap
 # per task, under demo/. No training. Each eval runs on one thread, so a model's zero-reward eval runs
