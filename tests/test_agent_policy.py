@@ -71,15 +71,18 @@ def test_a_vector_env_loop_plays_exactly_what_eval_plays(mode):
     assert returns == [[expected[(s, shot)] for shot in (1, 2, 3)] for s in seeds]
 
 
-def test_next_step_autoreset_feeds_no_token_for_a_finished_episodes_last_observation():
-    # InvertedPendulum episodes end at different steps: envs sit out steps at different times.
-    model, seeds = tiny_model(), [1, 2, 3, 4]
+@pytest.mark.parametrize("keep_first_steps", [0, 8])
+def test_next_step_autoreset_feeds_no_token_for_a_finished_episodes_last_observation(keep_first_steps):
+    # InvertedPendulum episodes end at different steps: envs sit out steps at different times, also in a
+    # window that keeps the run's first steps.
+    model, seeds = tiny_model(keep_first_steps=keep_first_steps), [1, 2, 3, 4]
     agent = Agent(model)
-    same, _ = vector_loop(Agent(model), "InvertedPendulum-v5", seeds, 3, gym.vector.AutoresetMode.SAME_STEP)
-    nxt, last_starts = vector_loop(agent, "InvertedPendulum-v5", seeds, 3, gym.vector.AutoresetMode.NEXT_STEP)
+    same, _ = vector_loop(Agent(model), "InvertedPendulum-v5", seeds, 6, gym.vector.AutoresetMode.SAME_STEP)
+    nxt, last_starts = vector_loop(agent, "InvertedPendulum-v5", seeds, 6, gym.vector.AutoresetMode.NEXT_STEP)
+    assert agent.cache.length > 2 * agent.cache.window  # the ring has turned over
     # The same tokens in the same order per env: the episodes come out the same (up to float rounding of
     # a batch whose envs sit in other cache slots).
-    np.testing.assert_allclose([r[:3] for r in nxt], [r[:3] for r in same], rtol=1e-4)
+    np.testing.assert_allclose([r[:6] for r in nxt], [r[:6] for r in same], rtol=1e-4)
     # Each env took one token per step of its own episodes and sat out the step after each finished one
     # (but the last, whose next step never came).
     sat_out = [len(r) - int(ended) for r, ended in zip(nxt, last_starts, strict=True)]
