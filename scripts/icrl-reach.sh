@@ -7,7 +7,8 @@
 # then the goal-aware expert's action), checkpoints chosen by
 # cold-start success on unseen goals (src/vintix/train/configs/icrl-reach.yaml); cold-start
 # evaluation on 20 unseen goals with true, zero and shuffled rewards fed back; the report with the
-# reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation.
+# reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation, ED=1 the
+# expert-distillation one (the same model trained on the goal-aware expert's histories of the same goals).
 set -euo pipefail
 W=${1:-icrl-reach}
 V=${VINTIX:-vintix}
@@ -24,6 +25,12 @@ if [[ ${NR:-0} == 1 ]]; then
   $V train --config icrl-reach --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={reward_encoder: mlp, rew_emb_dim: 16, obs_emb_dim: 56, act_emb_dim: 56, context_len: 500, keep_first_steps: 100, mask_reward: true}'
   $V eval --checkpoint "$W/runs/nr" --label "AD without rewards" "${EVAL[@]}" --out "$W/results/nr"
   folders+=("$W/results/nr")
+fi
+if [[ ${ED:-0} == 1 ]]; then
+  $V collect --recipe icrl-reach-expert --out "$W/data-expert" --workers 2
+  $V train --config icrl-reach --data "$W/data-expert" --out "$W/runs/ed"
+  $V eval --checkpoint "$W/runs/ed" --label "ED" "${EVAL[@]}" --out "$W/results/ed"
+  folders+=("$W/results/ed")
 fi
 $V report "${folders[@]}" --reference ours --out "$W/report"
 echo "model under $W/runs/ad/checkpoints/best, results under $W/results, report $W/report/report.md"
