@@ -8,29 +8,36 @@
 # cold-start success on unseen goals (src/vintix/train/configs/icrl-reach.yaml); cold-start
 # evaluation on 20 unseen goals with true, zero and shuffled rewards fed back; the report with the
 # reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation, ED=1 the
-# expert-distillation one (the same model trained on the goal-aware expert's histories of the same goals).
+# expert-distillation one (the same model trained on the goal-aware expert's histories of the same
+# goals, evaluated with true, zero and shuffled rewards too).
 set -euo pipefail
 W=${1:-icrl-reach}
 V=${VINTIX:-vintix}
 EVAL=(--tasks reach-v3 --shots 20 --seeds 20 --first-seed 100 --reference ours)
 
+folders=()
+# evaluate RUN LABEL REWARDS...: cold-start eval of $W/runs/RUN with each kind of reward fed back
+evaluate() {
+  local run=$1 label=$2 rewards
+  shift 2
+  for rewards in "$@"; do
+    $V eval --checkpoint "$W/runs/$run" --label "$label ($rewards rewards)" "${EVAL[@]}" --reward-input "$rewards" \
+      --out "$W/results/$run-$rewards"
+    folders+=("$W/results/$run-$rewards")
+  done
+}
+
 $V collect --recipe icrl-reach --out "$W/data" --workers 2
 $V train --config icrl-reach --data "$W/data" --out "$W/runs/ad"
-for rewards in true zero shuffled; do
-  $V eval --checkpoint "$W/runs/ad" --label "AD ($rewards rewards)" "${EVAL[@]}" --reward-input "$rewards" \
-    --out "$W/results/$rewards"
-done
-folders=("$W"/results/{true,zero,shuffled})
+evaluate ad AD true zero shuffled
 if [[ ${NR:-0} == 1 ]]; then
   $V train --config icrl-reach --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={reward_encoder: mlp, rew_emb_dim: 16, obs_emb_dim: 56, act_emb_dim: 56, context_len: 500, keep_first_steps: 100, mask_reward: true}'
-  $V eval --checkpoint "$W/runs/nr" --label "AD without rewards" "${EVAL[@]}" --out "$W/results/nr"
-  folders+=("$W/results/nr")
+  evaluate nr "AD without rewards" true
 fi
 if [[ ${ED:-0} == 1 ]]; then
   $V collect --recipe icrl-reach-expert --out "$W/data-expert" --workers 2
   $V train --config icrl-reach --data "$W/data-expert" --out "$W/runs/ed"
-  $V eval --checkpoint "$W/runs/ed" --label "ED" "${EVAL[@]}" --out "$W/results/ed"
-  folders+=("$W/results/ed")
+  evaluate ed ED true zero shuffled
 fi
 $V report "${folders[@]}" --reference ours --out "$W/report"
 echo "model under $W/runs/ad/checkpoints/best, results under $W/results, report $W/report/report.md"

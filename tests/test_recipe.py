@@ -21,7 +21,6 @@ def test_shipped_recipes_load():
     assert sum(p.histories * p.steps for p in paper.values()) == 191_500_000
 
 
-
 def test_the_expert_distillation_recipe_of_icrl_reach_plays_its_goals_with_the_goal_aware_expert():
     """The ED ablation must differ from AD only in who plays: the same hidden goals, lengths and seeds."""
     (ad,), (ed,) = load_recipe("icrl-reach"), load_recipe("icrl-reach-expert")
@@ -29,6 +28,7 @@ def test_the_expert_distillation_recipe_of_icrl_reach_plays_its_goals_with_the_g
     assert [ed.recorded_settings(i)["env_seed"] for i in (0, 1999)] == \
         [ad.recorded_settings(i)["env_seed"] for i in (0, 1999)]
     assert (ed.task, ed.histories, ed.steps) == (ad.task, ad.histories, ad.steps)
+
 
 def test_the_paper_recipe_fits_a_schedule_for_every_task_with_a_demonstrator():
     """A demonstrator shipped without fitting its task's schedule would collect with plain linear decay.
