@@ -4,8 +4,10 @@ import pytest
 
 from vintix.collect import CollectionError
 from vintix.collect.recipe import load_recipe
+from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.demonstrators.trained import weights_paths
 from vintix.tasks import get_task
+from vintix.train.config import load_config
 
 
 def test_shipped_recipes_load():
@@ -28,6 +30,17 @@ def test_the_expert_distillation_recipe_of_icrl_reach_plays_its_goals_with_the_g
     assert [ed.recorded_settings(i)["env_seed"] for i in (0, 1999)] == \
         [ad.recorded_settings(i)["env_seed"] for i in (0, 1999)]
     assert (ed.task, ed.histories, ed.steps) == (ad.task, ad.histories, ad.steps)
+
+
+def test_the_icrl_suite_holds_tasks_whose_hidden_goal_decides_success_and_selects_its_checkpoint_on_all_of_them():
+    """Each task of the suite must be one a goal-blind expert mostly fails (the goal-blind table), played by
+    the demonstrator that never sees the goal; checkpoint selection must score every one of them."""
+    plans, table = load_recipe("icrl-suite"), read_goal_blind()
+    for plan in plans:
+        row = table[plan.task]
+        assert row.goal_blind_success <= 0.45 and row.true_goal_success == 1.0, plan.task
+        assert plan.behaviour == "probe-then-sample", plan.task
+    assert load_config("icrl-suite").select_tasks == [plan.task for plan in plans]
 
 
 def test_the_paper_recipe_fits_a_schedule_for_every_task_with_a_demonstrator():

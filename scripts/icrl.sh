@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Rebuild an in-context RL model and its reward-ablation results from nothing, on a CPU.
+#   scripts/icrl.sh NAME [WORK_DIR]      NAME: icrl-reach or icrl-suite (default WORK_DIR: NAME/;
+#                                        collection and training resume where they stopped)
+# Steps: the histories of recipe NAME (src/vintix/collect/recipes/NAME.yaml: each a hidden goal played
+# by a demonstrator that never sees it: it probes the goal box in its first episode, then aims at goals
+# drawn from its posterior given the rewards so far); a model trained with config NAME
+# (src/vintix/train/configs/NAME.yaml) on the recorded target (the probe, then the goal-aware expert's
+# action), checkpoints chosen by cold-start success on unseen goals; cold-start evaluation on 20 unseen
+# goals a task (the config's select_tasks) with true, zero and shuffled rewards fed back; the report
+# with the reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation, ED=1
+# the expert-distillation one (the same model trained on the goal-aware expert's histories of the same
+# goals, recipe NAME-expert, evaluated with true, zero and shuffled rewards too).
+set -euo pipefail
+NAME=${1:?usage: scripts/icrl.sh icrl-reach|icrl-suite [WORK_DIR]}
+W=${2:-$NAME}
+V=${VINTIX:-vintix}
+PY=${PYTHON:-python}
+config() { $PY -c "import json; from vintix.train.config import load_config; c = load_config('$NAME'); print($1)"; }
+TASKS=$(config "','.join(c.select_tasks)")
+EVAL=(--tasks "$TASKS" --shots 20 --seeds 20 --first-seed 100 --reference ours)
+
+folders=()
+# evaluate RUN LABEL REWARDS...: cold-start eval of $W/runs/RUN with each kind of reward fed back
+evaluate() {
+  local run=$1 label=$2 rewards
+  shift 2
+  for rewards in "$@"; do
+    $V eval --checkpoint "$W/runs/$run" --label "$label ($rewards rewards)" "${EVAL[@]}" --reward-input "$rewards" \
+      --out "$W/results/$run-$rewards"
+    folders+=("$W/results/$run-$rewards")
+  done
+}
+
+$V collect --recipe "$NAME" --out "$W/data" --workers 2
+$V train --config "$NAME" --data "$W/data" --out "$W/runs/ad"
+evaluate ad AD true zero shuffled
+if [[ ${NR:-0} == 1 ]]; then
+  $V train --config "$NAME" --data "$W/data" --out "$W/runs/nr" \
+    --set "model_overrides=$(config "json.dumps({**c.model_overrides, 'mask_reward': True})")"
+  evaluate nr "AD without rewards" true
+fi
+if [[ ${ED:-0} == 1 ]]; then
+  $V collect --recipe "$NAME-expert" --out "$W/data-expert" --workers 2
+  $V train --config "$NAME" --data "$W/data-expert" --out "$W/runs/ed"
+  evaluate ed ED true zero shuffled
+fi
+$V report "${folders[@]}" --reference ours --out "$W/report"
+echo "model under $W/runs/ad/checkpoints/best, results under $W/results, report $W/report/report.md"
