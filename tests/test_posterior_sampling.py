@@ -7,7 +7,7 @@ import pytest
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.data import LearningHistory
 from vintix.demonstrators import PosteriorSamplingDemonstrator, load_demonstrator
-from vintix.demonstrators.goal_blind import goal_blind_baseline, read_goal_blind
+from vintix.demonstrators.goal_blind import goal_blind_baseline, observation_spread_across_goals, read_goal_blind
 from vintix.errors import VintixError
 from vintix.tasks import make_env
 from vintix.tasks.toy import EPISODE_LENGTH, START, SUCCESS_RADIUS
@@ -124,6 +124,14 @@ def test_goal_blind_baseline_separates_tasks_that_hide_their_goal():
     assert toy.true_goal_success == 1.0 and toy.goal_blind_success <= 0.4
     button = goal_blind_baseline("button-press-v3", seeds=3)  # the goal follows from the observed button
     assert button.hidden_information == 0.0
+
+
+def test_only_rewards_tell_reach_goals_apart_but_plate_slide_shows_its_goal_to_a_probe_that_pushes_into_it():
+    """The icrl suite's tasks must hide their goal from the observations whatever the agent does; plate-slide's
+    goal is a net on the table: the probe pushes the plate into it, and the plate moves differently."""
+    assert observation_spread_across_goals("reach-v3") == (0.0, 0.0, 0.0)
+    probe, _, _ = observation_spread_across_goals("plate-slide-v3")
+    assert probe > 0.05
 
 
 def test_the_shipped_goal_blind_table_covers_every_metaworld_task():

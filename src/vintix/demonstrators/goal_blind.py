@@ -7,6 +7,11 @@ button-press: the goal follows from the button's observed position), so improvem
 cannot show that a model reads rewards; a task whose goal-blind success is low can. The table
 `goal_blind.csv` beside the reference scores holds every Meta-World task, measured by `vintix
 demonstrator goal-blind`.
+
+A low goal-blind success is not enough for the rewards to be the only way to the goal: where the goal
+is a body (plate-slide's net, assembly's peg), an agent that touches it sees it in its observations.
+`observation_spread_across_goals` checks that: envs that differ only in their hidden goal, the same
+actions on all of them.
 """
 
 from __future__ import annotations
@@ -117,3 +122,45 @@ def write_goal_blind(results: list[GoalBlindResult], path: Path) -> Path:
     writer.writerows(asdict(rows[task]) for task in sorted(rows))
     atomic_write_text(path, buffer.getvalue())
     return path
+
+
+def observation_spread_across_goals(task: str, goal_seeds: Sequence[int] = (100, 101, 102, 103)) -> tuple[float, ...]:
+    """How far apart the same actions leave envs of Meta-World `task` that differ only in their hidden goal.
+
+    Every env starts as env seed ``goal_seeds[0]`` (the same object start) with the goal of one of
+    `goal_seeds`. Three episodes play the same actions on all of them: the probe of behaviour
+    'probe-then-sample', uniform-random actions, and the scripted expert aimed at the second env's goal.
+    Returns, per episode, the largest spread (max - min over envs) of any observation entry: all zeros when
+    only the rewards tell the goals apart, as on reach, where the goal is a marker with no body."""
+    goals = []
+    for seed in goal_seeds:
+        env = make_env(task, seed=seed)
+        env.reset()
+        goals.append(env.unwrapped.true_goal)  # type: ignore[attr-defined]
+        env.close()
+    envs = [make_env(task, seed=goal_seeds[0]) for _ in goals]
+    for env, goal in zip(envs, goals, strict=True):
+        env.reset()  # the first reset draws the seed's goal, which place_goal then replaces
+        env.unwrapped.place_goal(goal)  # type: ignore[attr-defined]
+    probe = load_demonstrator(task, behaviour="probe-then-sample")
+    probe.begin(envs, [np.random.default_rng(0) for _ in envs])  # type: ignore[attr-defined]
+    rng, spreads = np.random.default_rng(0), []
+    for episode in ("probe", "random", "expert"):
+        obs = np.stack([env.reset()[0] for env in envs])
+        spread, truncated = 0.0, False
+        while not truncated:
+            if episode == "probe":
+                action = probe.act(obs, envs)[0]
+            elif episode == "random":
+                action = rng.uniform(-1, 1, size=envs[0].action_space.shape)
+            else:
+                action = probe.expert.act_toward(obs[:1], goals[1][None])[0]  # type: ignore[attr-defined]
+            for i, env in enumerate(envs):
+                obs[i], reward, terminated, truncated, _ = env.step(action)
+                if episode == "probe":
+                    probe.observe(i, env, action, float(reward), terminated or truncated)  # type: ignore[attr-defined]
+            spread = max(spread, float(np.ptp(obs, axis=0).max()))
+        spreads.append(spread)
+    for env in envs:
+        env.close()
+    return tuple(spreads)

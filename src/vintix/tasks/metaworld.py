@@ -111,6 +111,13 @@ class MetaWorldTaskEnv(gym.Env):
             sawyer._target_pos = true_goal
         return np.asarray(rewards, dtype=np.float64)
 
+    def place_goal(self, goal: np.ndarray) -> None:
+        """Hide `goal` from the next reset on, keeping the object's start: the goal part of metaworld's
+        rand_vec (its last 3 entries) is replaced. For checks of what the goal alone changes."""
+        rand_vec = self._sawyer._last_rand_vec
+        assert rand_vec is not None  # drawn in __init__
+        self._sawyer._last_rand_vec = np.concatenate([rand_vec[:-3], np.asarray(goal, dtype=np.float64)])
+
     @property
     def true_goal(self) -> np.ndarray:
         """The hidden target position. For scripted demonstrators only."""
