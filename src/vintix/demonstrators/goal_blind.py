@@ -19,7 +19,7 @@ from __future__ import annotations
 import csv
 import datetime
 import io
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields
 from importlib import resources
 from pathlib import Path
@@ -64,15 +64,20 @@ def goal_blind_path() -> Path:
     return Path(str(resources.files("vintix.demonstrators").joinpath("goal_blind.csv")))
 
 
-def mean_goal(task: str) -> np.ndarray:
-    """The average hidden goal of `task` over `MEAN_GOAL_DRAWS` env seeds no evaluation uses."""
+def goals_of_seeds(task: str, seeds: Iterable[int]) -> list[np.ndarray]:
+    """The hidden goal that a new env of `task` with each of `seeds` draws."""
     env = make_env(task)
     goals = []
-    for seed in range(MEAN_GOAL_FIRST_SEED, MEAN_GOAL_FIRST_SEED + MEAN_GOAL_DRAWS):
+    for seed in seeds:
         env.reset(seed=seed)  # draws the goal a new env with this seed would
         goals.append(env.unwrapped.true_goal)  # type: ignore[attr-defined]
     env.close()
-    return np.mean(goals, axis=0)
+    return goals
+
+
+def mean_goal(task: str) -> np.ndarray:
+    """The average hidden goal of `task` over `MEAN_GOAL_DRAWS` env seeds no evaluation uses."""
+    return np.mean(goals_of_seeds(task, range(MEAN_GOAL_FIRST_SEED, MEAN_GOAL_FIRST_SEED + MEAN_GOAL_DRAWS)), axis=0)
 
 
 class AimedExpert:
@@ -132,12 +137,7 @@ def observation_spread_across_goals(task: str, goal_seeds: Sequence[int] = (100,
     'probe-then-sample', uniform-random actions, and the scripted expert aimed at the second env's goal.
     Returns, per episode, the largest spread (max - min over envs) of any observation entry: all zeros when
     only the rewards tell the goals apart, as on reach, where the goal is a marker with no body."""
-    goals = []
-    for seed in goal_seeds:
-        env = make_env(task, seed=seed)
-        env.reset()
-        goals.append(env.unwrapped.true_goal)  # type: ignore[attr-defined]
-        env.close()
+    goals = goals_of_seeds(task, goal_seeds)
     envs = [make_env(task, seed=goal_seeds[0]) for _ in goals]
     for env, goal in zip(envs, goals, strict=True):
         env.reset()  # the first reset draws the seed's goal, which place_goal then replaces
