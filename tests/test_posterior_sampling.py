@@ -8,6 +8,7 @@ from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsEr
 from vintix.data import LearningHistory
 from vintix.demonstrators import PosteriorSamplingDemonstrator, load_demonstrator
 from vintix.demonstrators.goal_blind import goal_blind_baseline, observation_spread_across_goals, read_goal_blind
+from vintix.demonstrators.scores import history_outcomes
 from vintix.errors import VintixError
 from vintix.tasks import make_env
 from vintix.tasks.toy import EPISODE_LENGTH, START, SUCCESS_RADIUS
@@ -17,22 +18,7 @@ NO_NOISE = NoiseSchedule(noise_free_fraction=1.0)
 
 def play_episodes(task: str, seeds: range, episodes: int, behaviour: str = "posterior-sampling") -> np.ndarray:
     """Success per (env, episode) of a demonstrator that infers the goal, one history per env seed."""
-    demonstrator = load_demonstrator(task, behaviour=behaviour)
-    envs = [make_env(task, seed=seed) for seed in seeds]
-    demonstrator.begin(envs, [np.random.default_rng(seed) for seed in seeds])
-    observations = np.stack([env.reset()[0] for env in envs])
-    success = np.zeros((len(envs), episodes))
-    for episode in range(episodes):
-        done = np.zeros(len(envs), dtype=bool)
-        while not done.all():
-            actions = demonstrator.act(observations, envs)
-            for i, env in enumerate(envs):
-                observations[i], reward, terminated, truncated, info = env.step(actions[i])
-                success[i, episode] = max(success[i, episode], info["success"])
-                demonstrator.observe(i, env, actions[i], reward, terminated or truncated)
-                done[i] = terminated or truncated
-        observations = np.stack([env.reset()[0] for env in envs])
-    return success
+    return history_outcomes(task, load_demonstrator(task, behaviour=behaviour), seeds, episodes).success  # type: ignore[arg-type]
 
 
 def test_toy_task_hides_its_goal_and_rewards_distance_to_it():
@@ -55,8 +41,9 @@ def test_posterior_sampling_starts_blind_and_finds_the_goal_from_rewards():
     assert success[:, -2:].mean() >= 0.7
 
 
-def test_probing_on_metaworld_reach_finds_the_goal_after_its_first_episode():
+def test_probing_on_metaworld_reach_rarely_meets_the_goal_by_chance_and_finds_it_after_its_first_episode():
     success = play_episodes("reach-v3", range(100, 110), episodes=3, behaviour="probing")
+    assert success[:, 0].mean() <= 0.4  # its corners lie outside the goal box (through the box's own: 0.5)
     assert success[:, 1:].mean() >= 0.8  # goal-blind: 0.15
 
 
@@ -160,3 +147,19 @@ def test_probe_then_sample_records_the_probe_then_the_expert_as_its_target_and_p
         assert np.allclose(rows["demonstrator_action"][later], expert, atol=1e-6)  # then: the goal-aware expert
     guesses = [rows["action"][EPISODE_LENGTH:] - rows["demonstrator_action"][EPISODE_LENGTH:] for rows, _ in histories]
     assert any(np.abs(miss).max() > 0 for miss in guesses)  # it plays a drawn goal, which may miss
+
+
+def test_demonstrator_histories_prints_how_a_goal_inferring_demonstrator_does_episode_after_episode():
+    from typer.testing import CliRunner
+
+    from vintix.cli import app
+
+    runner = CliRunner()
+    result = runner.invoke(app, ["demonstrator", "histories", "--task", "point-goal-v1", "--behaviour", "probing",
+                                 "--seeds", "10", "--episodes", "2"])
+    assert result.exit_code == 0, result.output
+    rows = [line.split("│")[1:3] for line in result.output.splitlines() if line.count("│") == 5]
+    success = {int(episode): float(rate) for episode, rate in rows if episode.strip().isdigit()}
+    assert success[1] <= 0.4 and success[2] >= 0.9  # the probe, then the goal its rewards revealed
+    result = runner.invoke(app, ["demonstrator", "histories", "--task", "point-goal-v1", "--behaviour", "expert"])
+    assert result.exit_code == 2 and "does not learn within a history" in " ".join(result.output.split())

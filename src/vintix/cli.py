@@ -448,6 +448,41 @@ def demonstrator_goal_blind(
         console.print(f"updated the package's table {write_goal_blind(results, goal_blind_path())}")
 
 
+@demonstrator_app.command("histories")
+def demonstrator_histories(
+    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World or toy)")],
+    behaviour: Annotated[str, typer.Option(help="how a demonstrator that never sees the goal plays: "
+                                           "posterior-sampling, probing or probe-then-sample")] = "probe-then-sample",
+    seeds: Annotated[int, typer.Option(min=1, help="histories, env seeds first-seed, first-seed + 1, ...")] = 20,
+    first_seed: Annotated[int, typer.Option(min=0)] = 100,
+    episodes: Annotated[int, typer.Option(min=1, help="episodes per history")] = 8,
+) -> None:
+    """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
+    import numpy as np
+
+    from vintix.demonstrators import GoalInferringDemonstrator, load_demonstrator
+    from vintix.demonstrators.scores import history_outcomes
+
+    try:
+        demonstrator = load_demonstrator(task, behaviour=behaviour)
+        if not isinstance(demonstrator, GoalInferringDemonstrator):
+            raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
+                              "posterior-sampling, probing or probe-then-sample (`vintix demonstrator eval` scores "
+                              "the expert)")
+        outcomes = history_outcomes(task, demonstrator, range(first_seed, first_seed + seeds), episodes)
+    except (VintixError, ValueError) as error:
+        raise _fail(error) from None
+    table = Table(title=f"{task}, {behaviour}: {seeds} histories (env seeds {first_seed}..{first_seed + seeds - 1})")
+    for column in ("episode", "success", "mean return", "median end distance to goal"):
+        table.add_column(column, justify="right")
+    for episode in range(episodes):
+        distances = outcomes.end_distance[:, episode]
+        distance = "–" if np.isnan(distances).all() else f"{np.median(distances):.3f}"
+        table.add_row(str(episode + 1), f"{outcomes.success[:, episode].mean():.2f}",
+                      f"{outcomes.returns[:, episode].mean():.1f}", distance)
+    console.print(table)
+
+
 @demonstrator_app.command("list")
 def demonstrator_list() -> None:
     """Which tasks have a demonstrator, how it was made, and its recorded score."""

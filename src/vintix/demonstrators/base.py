@@ -27,7 +27,7 @@ class Demonstrator(Protocol):
 BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample")
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
 rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
-probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
+probing corners of (or just outside) the goal box in the first episode and aiming later ones at the likeliest goal; or
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert)."""
 
 

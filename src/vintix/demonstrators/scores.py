@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import datetime
 from collections.abc import Sequence
+from dataclasses import dataclass
 from importlib import metadata
 
 import gymnasium as gym
 import numpy as np
 
 from vintix.demonstrators.base import Demonstrator
+from vintix.demonstrators.posterior import GoalInferringDemonstrator
 from vintix.tasks import TaskSpec, get_task, make_env
 from vintix.tasks.scores import MeasuredScore
 
@@ -56,6 +58,47 @@ def episode_outcomes(task: str, policy: Demonstrator, episodes: int, seed: int =
     for env in envs:
         env.close()
     return returns, success
+
+
+@dataclass(frozen=True)
+class HistoryOutcomes:
+    """What a demonstrator that learns within a history did in each of its episodes, per env
+    (arrays [n_envs, episodes])."""
+
+    returns: np.ndarray
+    """undiscounted return of each episode"""
+    success: np.ndarray
+    """1 if the env flagged success at any step of the episode, else 0"""
+    end_distance: np.ndarray
+    """the env's distance of object (Meta-World reach: hand) to goal at the episode's last step
+    (``info['obj_to_target']``); NaN on tasks that do not report it"""
+
+
+def history_outcomes(task: str, demonstrator: GoalInferringDemonstrator, seeds: Sequence[int],
+                     episodes: int) -> HistoryOutcomes:
+    """Play one history of `episodes` episodes per env seed (each its own hidden goal, its demonstrator
+    random stream seeded alike), told every step's reward as the collector tells it, with no noise:
+    how the demonstrator alone does, episode after episode."""
+    envs = [make_env(task, seed=seed) for seed in seeds]
+    demonstrator.begin(envs, [np.random.default_rng(seed) for seed in seeds])
+    shape = (len(envs), episodes)
+    returns, success, end_distance = np.zeros(shape), np.zeros(shape), np.full(shape, np.nan)
+    for episode in range(episodes):
+        observations = np.stack([env.reset()[0] for env in envs])
+        running = np.ones(len(envs), dtype=bool)
+        while running.any():
+            actions = demonstrator.act(observations, envs)  # every env's episode has the same length
+            for i in np.flatnonzero(running):
+                observations[i], reward, terminated, truncated, info = envs[i].step(actions[i])
+                returns[i, episode] += float(reward)
+                success[i, episode] = max(success[i, episode], float(info.get("success", 0.0)))
+                running[i] = not (terminated or truncated)
+                if not running[i]:
+                    end_distance[i, episode] = float(info.get("obj_to_target", np.nan))
+                demonstrator.observe(int(i), envs[i], actions[i], float(reward), not running[i])
+    for env in envs:
+        env.close()
+    return HistoryOutcomes(returns, success, end_distance)
 
 
 def measure(task: str, policy_name: str, policy: Demonstrator, episodes: int, seed: int, command: str) -> MeasuredScore:
