@@ -456,6 +456,8 @@ def demonstrator_histories(
     seeds: Annotated[int, typer.Option(min=1, help="histories, env seeds first-seed, first-seed + 1, ...")] = 20,
     first_seed: Annotated[int, typer.Option(min=0)] = 100,
     episodes: Annotated[int, typer.Option(min=1, help="episodes per history")] = 8,
+    probe_margin: Annotated[float, typer.Option(
+        help="how far outside the goal box the probed corners lie (probing, probe-then-sample)")] = 0.0,
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
@@ -464,7 +466,7 @@ def demonstrator_histories(
     from vintix.demonstrators.scores import history_outcomes
 
     try:
-        demonstrator = load_demonstrator(task, behaviour=behaviour)
+        demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
             raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
                               "posterior-sampling, probing or probe-then-sample (`vintix demonstrator eval` scores "
@@ -472,7 +474,9 @@ def demonstrator_histories(
         outcomes = history_outcomes(task, demonstrator, range(first_seed, first_seed + seeds), episodes)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
-    table = Table(title=f"{task}, {behaviour}: {seeds} histories (env seeds {first_seed}..{first_seed + seeds - 1})")
+    margin = f", probe margin {probe_margin}" if probe_margin else ""
+    table = Table(title=f"{task}, {behaviour}{margin}: {seeds} histories "
+                        f"(env seeds {first_seed}..{first_seed + seeds - 1})")
     for column in ("episode", "success", "mean return", "median end distance to goal"):
         table.add_column(column, justify="right")
     for episode in range(episodes):

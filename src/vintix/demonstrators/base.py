@@ -25,20 +25,26 @@ class Demonstrator(Protocol):
 
 
 BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample")
+PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
 rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
-probing corners of (or just outside) the goal box in the first episode and aiming later ones at the likeliest goal; or
+probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert)."""
 
 
 def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
-                      source: str | None = None) -> Demonstrator:
+                      source: str | None = None, probe_margin: float = 0.0) -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
     tasks that have none. A `behaviour` other than "expert" wraps a scripted expert of a
     hidden-goal task (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards.
-    `source`: a demonstrator from outside the package instead (`external_demonstrator`)."""
+    `source`: a demonstrator from outside the package instead (`external_demonstrator`). `probe_margin`: with
+    behaviour 'probing' or 'probe-then-sample', how far outside the goal box the probe's corners lie."""
     spec = get_task(task)
+    if probe_margin and behaviour not in PROBING_BEHAVIOURS or probe_margin < 0:
+        raise VintixError(f"{spec.name!r}: probe_margin {probe_margin} (with behaviour {behaviour!r}) must be >= 0 and "
+                          f"is for a behaviour whose first episode probes ({' or '.join(PROBING_BEHAVIOURS)}); "
+                          "leave it out otherwise")
     if source is not None:
         if behaviour != "expert" or weights is not None:
             raise VintixError(f"{spec.name!r}: a demonstrator named by the recipe ({source!r}) plays as it is: "
@@ -58,7 +64,8 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
                               f"(tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.domain} task"
                               f"{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
         expert = load_demonstrator(spec.name)
-        return PosteriorSamplingDemonstrator(expert, posterior_settings(spec.domain, behaviour))  # type: ignore[arg-type]
+        settings = posterior_settings(spec.domain, behaviour, probe_margin)
+        return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
     if weights is not None and spec.domain in ("metaworld", "bidexhands"):
         raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "
                           "are scripted and Bi-DexHands' need IsaacGym; leave the weights out")
