@@ -25,11 +25,12 @@ class Demonstrator(Protocol):
 
 
 BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample")
-PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
 rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert)."""
+PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
+"""The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
 
 
 def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
@@ -41,7 +42,7 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     `source`: a demonstrator from outside the package instead (`external_demonstrator`). `probe_margin`: with
     behaviour 'probing' or 'probe-then-sample', how far outside the goal box the probe's corners lie."""
     spec = get_task(task)
-    if probe_margin and behaviour not in PROBING_BEHAVIOURS or probe_margin < 0:
+    if (probe_margin and behaviour not in PROBING_BEHAVIOURS) or probe_margin < 0:
         raise VintixError(f"{spec.name!r}: probe_margin {probe_margin} (with behaviour {behaviour!r}) must be >= 0 and "
                           f"is for a behaviour whose first episode probes ({' or '.join(PROBING_BEHAVIOURS)}); "
                           "leave it out otherwise")

@@ -96,7 +96,7 @@ class PosteriorSettings:
     """with probe_steps: how far outside the goal box the probed corners lie, per side (in the goal's
     units), so that the probe passes through fewer goals by chance while its rewards still place them.
     Meta-World reach, probe-then-sample, 20 unseen goals: the probing episode succeeds on 0.50 of them
-    at 0, on 0.25 at 0.06 m, and the 5 episodes after it return 708-815 and 779-812"""
+    at 0, on 0.25 at 0.06 m, and the 7 episodes after it return 708-819 and 779-812"""
 
 
 # Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1].

@@ -70,8 +70,8 @@ class HistoryOutcomes:
     success: np.ndarray
     """1 if the env flagged success at any step of the episode, else 0"""
     end_distance: np.ndarray
-    """the env's distance of object (Meta-World reach: hand) to goal at the episode's last step
-    (``info['obj_to_target']``); NaN on tasks that do not report it"""
+    """the env's distance from object to goal at the episode's last step (``info['obj_to_target']``; on
+    Meta-World reach the gripper centre's, whose distance success measures); NaN where the env has none"""
 
 
 def history_outcomes(task: str, demonstrator: GoalInferringDemonstrator, seeds: Sequence[int],
