@@ -22,7 +22,7 @@ def play_episodes(task: str, seeds: range, episodes: int, behaviour: str = "post
                   probe_margin: float = 0.0) -> np.ndarray:
     """Success per (env, episode) of a demonstrator that infers the goal, one history per env seed."""
     demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin)
-    return history_outcomes(task, demonstrator, seeds, episodes).success  # type: ignore[arg-type]
+    return history_outcomes(task, demonstrator, seeds, episodes).success
 
 
 def test_toy_task_hides_its_goal_and_rewards_distance_to_it():

@@ -462,15 +462,15 @@ def demonstrator_histories(
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
 
-    from vintix.demonstrators import GoalInferringDemonstrator, load_demonstrator
+    from vintix.demonstrators import BEHAVIOURS, GoalInferringDemonstrator, load_demonstrator
     from vintix.demonstrators.scores import history_outcomes
 
     try:
         demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
+            inferring = ", ".join(b for b in BEHAVIOURS if b != "expert")
             raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
-                              "posterior-sampling, probing or probe-then-sample (`vintix demonstrator eval` scores "
-                              "the expert)")
+                              f"one of {inferring} (`vintix demonstrator eval` scores the expert)")
         outcomes = history_outcomes(task, demonstrator, range(first_seed, first_seed + seeds), episodes)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
