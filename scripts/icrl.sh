@@ -10,7 +10,8 @@
 # goals a task (the config's select_tasks) with true, zero and shuffled rewards fed back; the report
 # with the reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation, ED=1
 # the expert-distillation one (the same model trained on the goal-aware expert's histories of the same
-# goals, recipe NAME-expert, evaluated with true, zero and shuffled rewards too).
+# goals, recipe NAME-expert, evaluated with true, zero and shuffled rewards too). Set RECIPE to collect
+# another recipe (a name or a YAML file) and train it with config NAME.
 set -euo pipefail
 NAME=${1:?usage: scripts/icrl.sh icrl-reach|icrl-suite [WORK_DIR]}
 W=${2:-$NAME}
@@ -32,7 +33,7 @@ evaluate() {
   done
 }
 
-$V collect --recipe "$NAME" --out "$W/data" --workers 2
+$V collect --recipe "${RECIPE:-$NAME}" --out "$W/data" --workers 2
 $V train --config "$NAME" --data "$W/data" --out "$W/runs/ad"
 evaluate ad AD true zero shuffled
 if [[ ${NR:-0} == 1 ]]; then

@@ -347,6 +347,28 @@ def test_metaworld_has_no_training_recipe_nor_trained_weights_to_load(tmp_path):
         load_demonstrator("reach-v3", tmp_path)
 
 
+def end_distances(task: str, demonstrator, seeds: range) -> np.ndarray:
+    """The env's `obj_to_target` at the end of one episode per env seed (reach: the gripper centre to the goal)."""
+    envs = [make_env(task, seed=seed) for seed in seeds]
+    observations = np.stack([env.reset()[0] for env in envs])
+    for _ in range(100):
+        actions = demonstrator.act(observations, envs)
+        steps = [env.step(action) for env, action in zip(envs, actions, strict=True)]
+        observations = np.stack([step[0] for step in steps])
+    return np.array([step[4]["obj_to_target"] for step in steps])
+
+
+def test_a_reach_expert_aiming_its_gripper_centre_puts_it_on_the_goal_where_meta_worlds_leaves_it_4_cm_off():
+    seeds = range(100, 105)
+    assert np.all((end_distances("reach-v3", load_demonstrator("reach-v3"), seeds) > 0.03)
+                  & (end_distances("reach-v3", load_demonstrator("reach-v3"), seeds) < 0.05))  # the hand is on the goal
+    assert np.all(end_distances("reach-v3", load_demonstrator("reach-v3", aim="gripper-centre"), seeds) < 0.01)
+    with pytest.raises(VintixError, match="unknown aim 'elbow'"):
+        load_demonstrator("reach-v3", aim="elbow")
+    with pytest.raises(VintixError, match="push-v3.*aim 'gripper-centre' is for"):
+        load_demonstrator("push-v3", behaviour="probing", aim="gripper-centre")  # its goal is the puck's
+
+
 def test_random_policy_scores_below_the_demonstrator_and_table_round_trips(tmp_path):
     table = tmp_path / "scores.csv"
     expert = measure("reach-v3", "demonstrator", load_demonstrator("reach-v3"), 3, 0, "cmd")

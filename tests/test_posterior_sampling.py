@@ -117,6 +117,19 @@ def test_a_probe_margin_moves_the_probe_and_is_recorded_so_a_collection_cannot_m
             load_demonstrator("reach-v3", behaviour=behaviour, probe_margin=margin)
 
 
+def test_an_expert_aiming_its_gripper_centre_is_recorded_so_a_collection_cannot_mix_aims(tmp_path):
+    plan = CollectionPlan("reach-v3", histories=1, steps=100, schedule=NO_NOISE)
+    aimed = dataclasses.replace(plan, aim="gripper-centre")
+    with LearningHistory(collect(aimed, tmp_path)[0].path) as history:
+        assert history.attrs["aim"] == "gripper-centre"
+        aimed_actions = history.read(0, 100)["action"]
+    with pytest.raises(CollectionSettingsError, match="aim 'gripper-centre' \\(now 'hand'\\)"):
+        collect(plan, tmp_path)
+    with LearningHistory(collect(plan, tmp_path / "hand")[0].path) as history:
+        assert "aim" not in history.attrs
+        assert not np.allclose(history.read(0, 100)["action"], aimed_actions)
+
+
 def test_posterior_sampling_needs_a_task_whose_expert_can_aim_at_a_goal():
     with pytest.raises(VintixError, match="posterior-sampling"):
         load_demonstrator("industrial-benchmark-30-v1", behaviour="posterior-sampling")

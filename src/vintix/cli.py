@@ -458,6 +458,8 @@ def demonstrator_histories(
     episodes: Annotated[int, typer.Option(min=1, help="episodes per history")] = 8,
     probe_margin: Annotated[float, typer.Option(
         help="how far outside the goal box the probed corners lie (probing, probe-then-sample)")] = 0.0,
+    aim: Annotated[str, typer.Option(help="what the expert puts on the goal: hand, or gripper-centre (reach tasks)")]
+        = "hand",
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
@@ -466,7 +468,7 @@ def demonstrator_histories(
     from vintix.demonstrators.scores import history_outcomes
 
     try:
-        demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin)
+        demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
             inferring = ", ".join(b for b in BEHAVIOURS if b != "expert")
             raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
@@ -475,6 +477,7 @@ def demonstrator_histories(
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     margin = f", probe margin {probe_margin}" if probe_margin else ""
+    margin += f", aiming the {aim}" if aim != "hand" else ""
     table = Table(title=f"{task}, {behaviour}{margin}: {seeds} histories "
                         f"(env seeds {first_seed}..{first_seed + seeds - 1})")
     for column in ("episode", "success", "mean return", "median end distance to goal"):

@@ -84,6 +84,9 @@ class CollectionPlan:
     probe_margin: float = 0.0
     """With behaviour 'probing' or 'probe-then-sample': how far outside the goal box (in the goal's units)
     the corners its first episode probes lie (`PosteriorSettings.probe_margin`)."""
+    aim: str = "hand"
+    """What a scripted reach expert puts on the goal: 'hand' (Meta-World's policy) or 'gripper-centre' (what
+    reach's success measures; `vintix.demonstrators.base.AIMS`)."""
     demonstrator: str | None = None
     """A demonstrator from outside the package: ``module:callable`` (called with the task name, returns a
     Demonstrator), ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only) or
@@ -112,14 +115,21 @@ class CollectionPlan:
     def recorded_settings(self, index: int) -> dict[str, Any]:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
         env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
-        # Only a behaviour other than the expert's, or a probe margin, is recorded, so other histories keep their bytes.
+        # Only settings other than the defaults are recorded, so histories made with the defaults keep their bytes.
         behaviour: dict[str, Any] = {} if self.behaviour == "expert" else {"behaviour": self.behaviour}
         if self.probe_margin:
             behaviour["probe_margin"] = self.probe_margin
+        if self.aim != "hand":
+            behaviour["aim"] = self.aim
         if self.demonstrator is not None:
             behaviour["demonstrator"] = self.demonstrator
         return {"task": get_task(self.task).name, "env_seed": env_seed, "collection_seed": self.seed,
                 "steps": self.steps, **self.schedule.recorded(), **behaviour}
+
+    def load_demonstrator(self) -> Demonstrator:
+        """The demonstrator this plan's histories are played by."""
+        return load_demonstrator(get_task(self.task).name, behaviour=self.behaviour, source=self.demonstrator,
+                                 probe_margin=self.probe_margin, aim=self.aim)
 
 
 @dataclass(frozen=True)
@@ -211,8 +221,7 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
     """Collect histories `indices` of `plan.task` together, writing one file each (after each one's
     pilot run, if the schedule has one)."""
     spec = get_task(plan.task)
-    demonstrator = demonstrator or load_demonstrator(spec.name, behaviour=plan.behaviour, source=plan.demonstrator,
-                                                     probe_margin=plan.probe_margin)
+    demonstrator = demonstrator or plan.load_demonstrator()
     seeds = [history_seeds(spec.name, i, plan.seed) for i in indices]
     envs = [make_env(spec.name, seed=s.env_seed) for s in seeds]
     label = f"{spec.name} histories {indices[0]}-{indices[-1]}"
@@ -331,7 +340,8 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         schedule = NoiseSchedule.from_recorded(found)
         found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
         recorded.setdefault("pilot_steps", 0)
-        for key, default in (("behaviour", "expert"), ("probe_margin", 0.0)):  # recorded only when not the default
+        # recorded only when not the default
+        for key, default in (("behaviour", "expert"), ("probe_margin", 0.0), ("aim", "hand")):
             found.setdefault(key, default)
             recorded.setdefault(key, default)
         if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare
@@ -399,8 +409,7 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
         cluster.connect(ray)
     if demonstrator is None:
         for plan in plans:
-            load_demonstrator(get_task(plan.task).name, behaviour=plan.behaviour, source=plan.demonstrator,
-                              probe_margin=plan.probe_margin)
+            plan.load_demonstrator()
     check_output_kind(root, "dataset")
     check_disk_space(plans, root)
     # `kill` ends a collection as Ctrl-C does: its unfinished files removed, its workers ended.

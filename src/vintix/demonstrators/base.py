@@ -31,21 +31,27 @@ probing the goal box's corners in the first episode and aiming later ones at the
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert)."""
 PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
+AIMS = ("hand", "gripper-centre")
+"""What a Meta-World scripted expert puts on the goal: the hand, as Meta-World's policies do, or, on the
+tasks of `vintix.tasks.metaworld.GRIPPER_CENTRE_GOAL_TASKS`, the gripper centre whose distance their success
+measures (5 cm of slack around the goal instead of under 1 cm)."""
 
 
 def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
-                      source: str | None = None, probe_margin: float = 0.0) -> Demonstrator:
+                      source: str | None = None, probe_margin: float = 0.0, aim: str = "hand") -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
     tasks that have none. A `behaviour` other than "expert" wraps a scripted expert of a
     hidden-goal task (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards.
     `source`: a demonstrator from outside the package instead (`external_demonstrator`). `probe_margin`: with
-    behaviour 'probing' or 'probe-then-sample', how far outside the goal box the probe's corners lie."""
+    behaviour 'probing' or 'probe-then-sample', how far outside the goal box the probe's corners lie. `aim`: what
+    a scripted reach expert puts on the goal (`AIMS`), whatever the behaviour."""
     spec = get_task(task)
     if (probe_margin and behaviour not in PROBING_BEHAVIOURS) or probe_margin < 0:
         raise VintixError(f"{spec.name!r}: probe_margin {probe_margin} (with behaviour {behaviour!r}) must be >= 0 and "
                           f"is for a behaviour whose first episode probes ({' or '.join(PROBING_BEHAVIOURS)}); "
                           "leave it out otherwise")
+    _check_aim(spec.name, aim, source)
     if source is not None:
         if behaviour != "expert" or weights is not None:
             raise VintixError(f"{spec.name!r}: a demonstrator named by the recipe ({source!r}) plays as it is: "
@@ -64,7 +70,7 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
             raise VintixError(f"{spec.name!r}: {behaviour} needs a scripted expert that can aim at a given goal "
                               f"(tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.domain} task"
                               f"{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
-        expert = load_demonstrator(spec.name)
+        expert = load_demonstrator(spec.name, aim=aim)
         settings = posterior_settings(spec.domain, behaviour, probe_margin)
         return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
     if weights is not None and spec.domain in ("metaworld", "bidexhands"):
@@ -73,7 +79,7 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     if spec.domain == "metaworld":
         from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
 
-        return ScriptedMetaWorldDemonstrator(spec.name)
+        return ScriptedMetaWorldDemonstrator(spec.name, aim)
     if spec.domain == "toy":
         from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
 
@@ -83,6 +89,19 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     from vintix.demonstrators.trained import TrainedDemonstrator
 
     return TrainedDemonstrator(spec, weights)
+
+
+def _check_aim(task: str, aim: str, source: str | None) -> None:
+    if aim == "hand":
+        return
+    if aim not in AIMS:
+        raise VintixError(f"{task!r}: unknown aim {aim!r}; choose one of {', '.join(AIMS)}")
+    from vintix.tasks.metaworld import GRIPPER_CENTRE_GOAL_TASKS
+
+    if task not in GRIPPER_CENTRE_GOAL_TASKS or source is not None:
+        raise VintixError(f"{task!r}: aim {aim!r} is for the package's scripted experts of "
+                          f"{', '.join(GRIPPER_CENTRE_GOAL_TASKS)}, whose success measures the gripper centre; "
+                          "leave aim out otherwise")
 
 
 class ModelFileDemonstrator:
