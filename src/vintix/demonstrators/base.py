@@ -51,11 +51,11 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
         raise VintixError(f"{spec.name!r}: probe_margin {probe_margin} (with behaviour {behaviour!r}) must be >= 0 and "
                           f"is for a behaviour whose first episode probes ({' or '.join(PROBING_BEHAVIOURS)}); "
                           "leave it out otherwise")
-    _check_aim(spec.name, aim, source)
+    check_aim(spec.name, aim)
     if source is not None:
-        if behaviour != "expert" or weights is not None:
+        if behaviour != "expert" or weights is not None or aim != "hand":
             raise VintixError(f"{spec.name!r}: a demonstrator named by the recipe ({source!r}) plays as it is: "
-                              "leave out behaviour and weights")
+                              "leave out behaviour, weights and aim")
         return external_demonstrator(spec.name, source)
     if spec.domain == "custom":
         raise VintixError(f"task {spec.name!r} is your own, and the package has no demonstrator for it: name one in "
@@ -91,14 +91,15 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     return TrainedDemonstrator(spec, weights)
 
 
-def _check_aim(task: str, aim: str, source: str | None) -> None:
+def check_aim(task: str, aim: str) -> None:
+    """Raise unless a scripted expert of `task` can put `aim` (one of `AIMS`) on the goal."""
     if aim == "hand":
         return
     if aim not in AIMS:
         raise VintixError(f"{task!r}: unknown aim {aim!r}; choose one of {', '.join(AIMS)}")
     from vintix.tasks.metaworld import GRIPPER_CENTRE_GOAL_TASKS
 
-    if task not in GRIPPER_CENTRE_GOAL_TASKS or source is not None:
+    if task not in GRIPPER_CENTRE_GOAL_TASKS:
         raise VintixError(f"{task!r}: aim {aim!r} is for the package's scripted experts of "
                           f"{', '.join(GRIPPER_CENTRE_GOAL_TASKS)}, whose success measures the gripper centre; "
                           "leave aim out otherwise")

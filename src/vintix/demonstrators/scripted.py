@@ -15,16 +15,19 @@ import gymnasium as gym
 import numpy as np
 from metaworld.policies import ENV_POLICY_MAP
 
+from vintix.demonstrators.base import check_aim
 from vintix.tasks import toy
 from vintix.tasks.metaworld import MetaWorldTaskEnv
 
 
 class ScriptedMetaWorldDemonstrator:
-    """The scripted policy of one Meta-World task, aiming its hand or its gripper centre (`AIMS`) at the goal."""
+    """The scripted policy of one Meta-World task, aiming its hand or its gripper centre at the goal
+    (`vintix.demonstrators.base.AIMS`)."""
 
     def __init__(self, task: str, aim: str = "hand") -> None:
         # The map holds each task's concrete policy class; metaworld types its values as the abstract base.
         self.policy = ENV_POLICY_MAP[task]()  # type: ignore[abstract]
+        check_aim(task, aim)
         self.aim_offset = np.zeros(3)
         if aim == "gripper-centre":
             # Constant while the fingers stay open (std under 2 mm along an episode): measured once, after a reset.
