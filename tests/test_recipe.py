@@ -29,7 +29,7 @@ def test_the_expert_distillation_recipe_of_icrl_reach_plays_its_goals_with_the_g
     assert (ad.behaviour, ed.behaviour) == ("probe-then-sample", "expert")
     assert [ed.recorded_settings(i)["env_seed"] for i in (0, 1999)] == \
         [ad.recorded_settings(i)["env_seed"] for i in (0, 1999)]
-    assert (ed.task, ed.histories, ed.steps) == (ad.task, ad.histories, ad.steps)
+    assert (ed.task, ed.histories, ed.steps, ed.aim) == (ad.task, ad.histories, ad.steps, ad.aim)
 
 
 def test_the_icrl_suite_holds_tasks_whose_hidden_goal_decides_success_and_selects_its_checkpoint_on_all_of_them():
