@@ -31,6 +31,7 @@ from vintix.atomic import atomic_write_text
 from vintix.evaluate.config import REWARD_INPUTS, EvalConfig
 from vintix.evaluate.run import RewardFeed, play_shots
 from vintix.tasks import action_box, make_env
+from vintix.tasks.metaworld import hand_to_gripper_centre
 
 TASK = "reach-v3"
 
@@ -55,8 +56,7 @@ def main() -> None:
     feeds = [RewardFeed(args.reward_input, seed) for seed in seeds]
     episodes = play_shots(agent, envs, feeds, args.shots, progress=True)
     goals = np.stack([env.unwrapped.true_goal for env in envs])  # fixed for an env's life (ML45 protocol)
-    # The fingers stay open on reach, so the gripper centre keeps its offset from the hand (within 2 mm).
-    offset = envs[0].unwrapped.hand_to_gripper_centre() if args.point == "gripper-centre" else np.zeros(3)
+    offset = hand_to_gripper_centre(TASK) if args.point == "gripper-centre" else np.zeros(3)
     for env in envs:
         env.close()
 

@@ -476,9 +476,9 @@ def demonstrator_histories(
         outcomes = history_outcomes(task, demonstrator, range(first_seed, first_seed + seeds), episodes)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
-    margin = f", probe margin {probe_margin}" if probe_margin else ""
-    margin += f", aiming the {aim}" if aim != "hand" else ""
-    table = Table(title=f"{task}, {behaviour}{margin}: {seeds} histories "
+    settings = f", probe margin {probe_margin}" if probe_margin else ""
+    settings += f", aiming the {aim}" if aim != "hand" else ""
+    table = Table(title=f"{task}, {behaviour}{settings}: {seeds} histories "
                         f"(env seeds {first_seed}..{first_seed + seeds - 1})")
     for column in ("episode", "success", "mean return", "median end distance to goal"):
         table.add_column(column, justify="right")

@@ -17,7 +17,7 @@ from metaworld.policies import ENV_POLICY_MAP
 
 from vintix.demonstrators.base import check_aim
 from vintix.tasks import toy
-from vintix.tasks.metaworld import MetaWorldTaskEnv
+from vintix.tasks.metaworld import hand_to_gripper_centre
 
 
 class ScriptedMetaWorldDemonstrator:
@@ -28,13 +28,7 @@ class ScriptedMetaWorldDemonstrator:
         # The map holds each task's concrete policy class; metaworld types its values as the abstract base.
         self.policy = ENV_POLICY_MAP[task]()  # type: ignore[abstract]
         check_aim(task, aim)
-        self.aim_offset = np.zeros(3)
-        if aim == "gripper-centre":
-            # Constant while the fingers stay open (std under 2 mm along an episode): measured once, after a reset.
-            env = MetaWorldTaskEnv(task, seed=0)
-            env.reset()
-            self.aim_offset = env.hand_to_gripper_centre()
-            env.close()
+        self.aim_offset = hand_to_gripper_centre(task) if aim == "gripper-centre" else np.zeros(3)
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         return self.act_toward(observations, np.stack([env.unwrapped.true_goal for env in envs]))  # type: ignore[attr-defined]
