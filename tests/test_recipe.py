@@ -7,6 +7,7 @@ from vintix.collect.recipe import load_recipe
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.demonstrators.trained import weights_paths
 from vintix.tasks import get_task
+from vintix.tasks.metaworld import GRIPPER_CENTRE_GOAL_TASKS
 from vintix.train.config import load_config
 
 
@@ -34,12 +35,16 @@ def test_the_expert_distillation_recipe_of_icrl_reach_plays_its_goals_with_the_g
 
 def test_the_icrl_suite_holds_tasks_whose_hidden_goal_decides_success_and_selects_its_checkpoint_on_all_of_them():
     """Each task of the suite must be one a goal-blind expert mostly fails (the goal-blind table), played by
-    the demonstrator that never sees the goal; checkpoint selection must score every one of them."""
+    the demonstrator that never sees the goal, its reach tasks as icrl-reach plays reach; checkpoint selection
+    must score every one of them."""
     plans, table = load_recipe("icrl-suite"), read_goal_blind()
+    (reach,) = load_recipe("icrl-reach")
     for plan in plans:
         row = table[plan.task]
         assert row.goal_blind_success <= 0.45 and row.true_goal_success == 1.0, plan.task
         assert plan.behaviour == "probe-then-sample", plan.task
+        if plan.task in GRIPPER_CENTRE_GOAL_TASKS:
+            assert (plan.aim, plan.probe_margin) == (reach.aim, reach.probe_margin) == ("gripper-centre", 0.06)
     assert load_config("icrl-suite").select_tasks == [plan.task for plan in plans]
 
 
