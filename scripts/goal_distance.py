@@ -71,12 +71,12 @@ def main() -> None:
     for run, (seed, runs_episodes) in enumerate(zip(seeds, episodes, strict=True)):
         others = np.delete(goals, run, axis=0)
         for shot, episode in enumerate(runs_episodes, start=1):
-            hand, thing = episode.last_observation[:3], episode.last_observation[OBJECT]
-            point = thing if args.point == "object" else hand - offset
+            hand, obj = episode.last_observation[:3], episode.last_observation[OBJECT]
+            point = obj if args.point == "object" else hand - offset
             rows.append({"seed": seed, "shot": shot, "success": episode.success,
                          "own_goal": float(np.linalg.norm(point - goals[run])),
                          "other_goals": float(np.median(np.linalg.norm(others - point, axis=1))),
-                         "hand_to_object": float(np.linalg.norm(hand - thing))})
+                         "hand_to_object": float(np.linalg.norm(hand - obj))})
 
     print(f"{args.task}, {args.checkpoint}, {args.reward_input} rewards fed back, {len(seeds)} goals (seeds {seeds[0]}–"
           f"{seeds[-1]}); the {args.point}'s distances, medians over goals, in metres")
