@@ -44,9 +44,22 @@ def test_knots_replace_the_power_law_before_the_noise_free_tail():
     assert "knots" not in NoiseSchedule().recorded()  # power-law histories record what they always did
 
 
+def test_a_noise_free_start_leaves_the_probing_episode_to_the_demonstrator():
+    """Only the middle of the history is noised: a probe's first episode, then the last one, stay clean."""
+    schedule = NoiseSchedule(knots=[0.5, 0.0], noise_free_start_fraction=0.2, noise_free_fraction=0.2)
+    eps = schedule.epsilon(np.arange(500), 500)
+    assert not eps[:100].any() and not eps[400:].any()
+    np.testing.assert_allclose(eps[[100, 250, 399]], [0.5, 0.25, 0.5 / 300])  # knots over steps 100..400
+    assert NoiseSchedule.from_recorded(schedule.recorded()) == schedule
+    assert "noise_free_start_fraction" not in NoiseSchedule().recorded()
+
+
 @pytest.mark.parametrize(("bad", "message"), [
     (dict(curvature=0.0), "curvature p must be > 0"), (dict(noise_free_fraction=1.1), "must lie in"),
-    (dict(noise_free_fraction=-0.1), "must lie in"), (dict(knots=[1.0, 0.5]), "fall from 1 to 0"),
+    (dict(noise_free_fraction=-0.1), "must lie in"), (dict(knots=[1.0, 0.5]), "fall to 0 from at most 1"),
+    (dict(knots=[1.5, 0.0]), "from at most 1"),
+    (dict(noise_free_start_fraction=0.8, noise_free_fraction=0.2), r"\[0, 1 − f\)"),
+    (dict(noise_free_start_fraction=0.1, noise_free_fraction=1.0), "some of the history is noised"),
     (dict(knots=[1.0, 0.3, 0.4, 0.0]), "never rising"), (dict(knots=[1.0]), "at least two"),
     (dict(knots=[1.0, 0.0], curvature=2.0), "not both"), (dict(knots=["high", 0.0]), "knots must be tuple"),
     (dict(pilot_steps=-1), "pilot_steps must be >= 0"), (dict(pilot_steps=100, curvature=2.0), "not both"),

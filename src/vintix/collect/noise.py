@@ -19,8 +19,9 @@ from vintix.fields import check_field_types
 
 @dataclass(frozen=True)
 class NoiseSchedule:
-    """ε(n) = (1 − (n / ((1 − f)·N))^p)^(1/p) for n ≤ (1 − f)·N, else 0; or, with `knots`, ε piecewise
-    linear through them over the same n ≤ (1 − f)·N."""
+    """ε(n) = (1 − (x(n))^p)^(1/p) over the noised part s·N ≤ n ≤ (1 − f)·N of a history of N steps,
+    x(n) = (n − s·N) / ((1 − s − f)·N), else 0; or, with `knots`, ε piecewise linear through them over
+    the same part."""
 
     curvature: float = 1.0
     """p: > 1 keeps ε high for longer, then drops it (for returns that rise early); < 1 the opposite."""
@@ -28,12 +29,16 @@ class NoiseSchedule:
     """f: the fraction of the history, at its end, played by the demonstrator alone (1: all of it,
     expert data for the expert-distillation baseline); one default for Python, the CLI and recipes."""
     knots: tuple[float, ...] = ()
-    """ε at evenly spaced points of the noised part of the history, from 1 down to 0, instead of the
-    curvature (`fit_knots` places them so the expected return rises linearly); empty: the power law."""
+    """ε at evenly spaced points of the noised part of the history, falling to 0 from 1 (or from less,
+    so that its noisiest episodes still act), instead of the curvature (`fit_knots` places them so the
+    expected return rises linearly); empty: the power law."""
     pilot_steps: int = 0
     """Steps the demonstrator plays under linear decay on each history's own env before the history
     (not stored), to fit that history's knots; for tasks whose variants answer ε differently (Meta-World
     goals). 0: no pilot, one schedule for every history."""
+    noise_free_start_fraction: float = 0.0
+    """s: the fraction of the history, at its start, played by the demonstrator alone, for a
+    demonstrator whose first episode gathers what the rest reads from its rewards (a probe)."""
 
     def __post_init__(self) -> None:
         check_field_types(self, ValueError)  # recipes are YAML: "fast" must not reach a comparison
@@ -41,6 +46,10 @@ class NoiseSchedule:
             raise ValueError(f"noise schedule curvature p must be > 0, got {self.curvature}")
         if not 0 <= self.noise_free_fraction <= 1:
             raise ValueError(f"noise_free_fraction f must lie in [0, 1], got {self.noise_free_fraction}")
+        start, tail = self.noise_free_start_fraction, self.noise_free_fraction
+        if not (start == 0 or 0 < start < 1 - tail):
+            raise ValueError(f"noise_free_start_fraction s must lie in [0, 1 − f) so that some of the history is "
+                             f"noised (f = noise_free_fraction = {tail}), got {start}")
         if self.pilot_steps < 0:
             raise ValueError(f"noise schedule pilot_steps must be >= 0, got {self.pilot_steps}")
         if self.pilot_steps and self.curvature != 1:
@@ -48,8 +57,8 @@ class NoiseSchedule:
                              "which replace the power law)")
         if self.knots:
             knots = np.asarray(self.knots, dtype=np.float64)
-            if len(knots) < 2 or knots[0] != 1 or knots[-1] != 0 or np.any(np.diff(knots) > 0):
-                raise ValueError(f"noise schedule knots must fall from 1 to 0 (at least two, never rising), "
+            if len(knots) < 2 or not 0 < knots[0] <= 1 or knots[-1] != 0 or np.any(np.diff(knots) > 0):
+                raise ValueError(f"noise schedule knots must fall to 0 from at most 1 (at least two, never rising), "
                                  f"got {list(self.knots)}")
             if self.curvature != 1:
                 raise ValueError("give noise schedule knots or a curvature, not both (knots replace the power law)")
@@ -58,26 +67,32 @@ class NoiseSchedule:
         """ε at step index `step` (0-based) of a history of `total_steps` steps."""
         if self.noise_free_fraction == 1:
             return np.zeros(np.shape(step))
-        progress = np.asarray(step, dtype=np.float64) / ((1 - self.noise_free_fraction) * total_steps)
+        start = self.noise_free_start_fraction * total_steps
+        end = (1 - self.noise_free_fraction) * total_steps
+        progress = (np.asarray(step, dtype=np.float64) - start) / (end - start)
         clipped = np.clip(progress, 0, 1)
         if self.knots:
             noised = np.interp(clipped, np.linspace(0, 1, len(self.knots)), self.knots)
         else:
             p = self.curvature
             noised = (1 - clipped ** p) ** (1 / p)
-        return np.where(progress <= 1, noised, 0.0)
+        return np.where((progress >= 0) & (progress <= 1), noised, 0.0)
 
     def recorded(self) -> dict[str, Any]:
-        """The schedule as a history file records it (root attributes; knots and pilot only when it has them)."""
+        """The schedule as a history file records it (root attributes; knots, pilot and noise-free start only when it
+        has them)."""
         settings: dict[str, Any] = {"curvature": self.curvature, "noise_free_fraction": self.noise_free_fraction}
         settings |= {"knots": list(self.knots)} if self.knots else {}
+        start = self.noise_free_start_fraction
+        settings |= {"noise_free_start_fraction": start} if start else {}
         return settings | ({"pilot_steps": self.pilot_steps} if self.pilot_steps else {})
 
     @classmethod
     def from_recorded(cls, attrs: Mapping[str, Any]) -> NoiseSchedule:
         """The schedule a history file records (see `recorded`)."""
         return cls(float(attrs["curvature"]), float(attrs["noise_free_fraction"]),
-                   tuple(float(k) for k in np.ravel(attrs.get("knots", []))), int(attrs.get("pilot_steps", 0)))
+                   tuple(float(k) for k in np.ravel(attrs.get("knots", []))), int(attrs.get("pilot_steps", 0)),
+                   float(attrs.get("noise_free_start_fraction", 0.0)))
 
 
 def mix_action(expert: np.ndarray, epsilon: float | np.ndarray, noise: np.ndarray) -> np.ndarray:
