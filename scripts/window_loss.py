@@ -1,0 +1,73 @@
+"""Is a model that fails in closed loop memorizing its histories, or imitating them well and failing anyway?
+
+Computes a trained model's loss (the training objective, teacher-forced) per task on random windows of
+one or more datasets: its own training data beside histories collected on goals it never saw (for
+example `vintix collect --recipe R --seed 777 --out heldout` with fewer histories). Equal losses on both
+say the model generalizes its imitation to new goals, so a closed-loop failure comes from what it does
+with its own actions in context (compounding errors, contexts unlike its training ones); a much larger
+loss on the new goals says it memorized the training histories.
+
+    python scripts/window_loss.py CHECKPOINT DATA [DATA ...] [--windows 64] [--seed 123]
+
+The windows, targets and tasks are the checkpoint's training settings (`train_config` in its
+config.json: window length, expert distillation, the tasks it was trained on).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from vintix.agent.pretrained import resolve_checkpoint
+from vintix.model.checkpoint import load_pretrained, read_metadata
+from vintix.train.data import WindowDataset, collate_windows, load_training_data
+from vintix.train.trainer import WindowLoss
+
+BATCH = 16
+"""Windows per forward pass."""
+
+
+def task_losses(checkpoint: Path, root: str, windows: int, seed: int) -> dict[str, np.ndarray]:
+    """Per-window loss of the model at `checkpoint` on `windows` windows a task of the dataset at `root`."""
+    extra = read_metadata(checkpoint)["extra"]
+    config = extra["train_config"]
+    model = load_pretrained(checkpoint).eval()
+    data = load_training_data(root, tasks=extra["trained_tasks"], expert_distillation=config["expert_distillation"],
+                              expert_tail_fraction=config["expert_tail_fraction"], expert_rows=config["expert_rows"])
+    dataset = WindowDataset(data, config["window_len"] or model.config.context_len, seed=seed)
+    loss = WindowLoss(model)
+    losses: dict[str, list[float]] = {}
+    with torch.no_grad():
+        for start in range(0, windows * len(data.tasks), BATCH):
+            batch = [dataset[i] for i in range(start, start + BATCH)]
+            names = [data.tasks[int(w["task_idx"])].name for w in batch]
+            for window, name in zip(batch, names, strict=True):  # the dataset's task order is not the model's
+                window["task_idx"] = model.task_index(name)
+            # collate_windows groups windows by group name; one loss per window, in that order.
+            order = sorted(range(len(batch)), key=lambda i: str(batch[i]["group"]))
+            for i, value in zip(order, loss(collate_windows(batch)).tolist(), strict=True):
+                losses.setdefault(names[i], []).append(value)
+    return {name: np.asarray(values) for name, values in sorted(losses.items())}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("checkpoint", help="a checkpoint or training run folder")
+    parser.add_argument("data", nargs="+", help="dataset roots (the training data, and data on new goals)")
+    parser.add_argument("--windows", type=int, default=64,
+                        help="windows drawn per task (about: each window's task is drawn at random)")
+    parser.add_argument("--seed", type=int, default=123, help="which windows are drawn")
+    args = parser.parse_args()
+    checkpoint = resolve_checkpoint(args.checkpoint)
+    print(f"{checkpoint}: mean loss per window ± standard error")
+    for root in args.data:
+        for task, values in task_losses(checkpoint, root, args.windows, args.seed).items():
+            error = values.std(ddof=1) / np.sqrt(len(values)) if len(values) > 1 else float("nan")
+            print(f"  {root}  {task:16s} {values.mean():.5f} ± {error:.5f}  ({len(values)} windows)")
+
+
+if __name__ == "__main__":
+    main()
