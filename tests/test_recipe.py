@@ -24,13 +24,17 @@ def test_shipped_recipes_load():
     assert sum(p.histories * p.steps for p in paper.values()) == 191_500_000
 
 
-def test_the_expert_distillation_recipe_of_icrl_reach_plays_its_goals_with_the_goal_aware_expert():
+@pytest.mark.parametrize("name", ["icrl-reach", "icrl-suite"])
+def test_the_expert_distillation_recipe_of_an_icrl_recipe_plays_its_goals_with_the_goal_aware_expert(name):
     """The ED ablation must differ from AD only in who plays: the same hidden goals, lengths and seeds."""
-    (ad,), (ed,) = load_recipe("icrl-reach"), load_recipe("icrl-reach-expert")
-    assert (ad.behaviour, ed.behaviour) == ("probe-then-sample", "expert")
-    assert [ed.recorded_settings(i)["env_seed"] for i in (0, 1999)] == \
-        [ad.recorded_settings(i)["env_seed"] for i in (0, 1999)]
-    assert (ed.task, ed.histories, ed.steps, ed.aim) == (ad.task, ad.histories, ad.steps, ad.aim)
+    ad_plans, ed_plans = load_recipe(name), load_recipe(f"{name}-expert")
+    assert [ad.task for ad in ad_plans] == [ed.task for ed in ed_plans]
+    for ad, ed in zip(ad_plans, ed_plans, strict=True):
+        assert (ad.behaviour, ed.behaviour) == ("probe-then-sample", "expert")
+        last = ad.histories - 1
+        assert [ed.recorded_settings(i)["env_seed"] for i in (0, last)] == \
+            [ad.recorded_settings(i)["env_seed"] for i in (0, last)]
+        assert (ed.histories, ed.steps, ed.aim) == (ad.histories, ad.steps, ad.aim)
 
 
 def test_the_icrl_suite_holds_tasks_whose_hidden_goal_decides_success_and_selects_its_checkpoint_on_all_of_them():
