@@ -12,13 +12,14 @@ from vintix.model.checkpoint import WEIGHTS_FILE, CheckpointError, read_metadata
 from vintix.tasks import get_task, make_env
 
 
-def test_the_cpu_suite_model_is_shipped_small_and_records_how_it_was_made():
-    assert "cpu-suite" in shipped_models()
-    folder = resolve_checkpoint("cpu-suite")
+@pytest.mark.parametrize("name", ["cpu-suite", "icrl-reach", "icrl-suite"])  # point-goal: no checkpoint selection
+def test_a_shipped_model_is_small_trained_on_its_recipe_and_records_how_it_was_made(name):
+    assert name in shipped_models()
+    folder = resolve_checkpoint(name)
     assert (folder / WEIGHTS_FILE).stat().st_size <= 25 * 2**20
     extra = read_metadata(folder)["extra"]
-    suite = {plan.task for plan in load_recipe("cpu-suite") if get_task(plan.task).split == "train"}
-    assert set(extra["trained_tasks"]) == suite  # trained on the suite's train split, nothing held out
+    suite = {plan.task for plan in load_recipe(name) if get_task(plan.task).split == "train"}
+    assert set(extra["trained_tasks"]) == suite  # trained on its recipe's train split, nothing held out
     assert np.isfinite(extra["in_context_score"]) and extra["select_reference"] == "ours"
     assert "vintix train" in (folder / "TRAINING.md").read_text()
 
