@@ -196,6 +196,14 @@ def test_writer_is_atomic(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["h.h5"]
 
 
+def test_a_writer_whose_first_writes_fail_leaves_no_file_behind(tmp_path):
+    """The file exists from the writer's first line on; a failure while it writes its attributes (here an
+    attribute HDF5 cannot store, in a collection a disk filling up at that moment) must remove it."""
+    with pytest.raises(TypeError):
+        LearningHistoryWriter(tmp_path / "h.h5", 3, 2, attrs={"settings": object()})
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [

@@ -400,8 +400,14 @@ class LearningHistoryWriter:
         # No chunk cache: each chunk reaches the disk inside the call that writes it, so a full disk is an
         # OSError there, not a write HDF5 retries when it frees the dataset (errors it can only print,
         # then a segfault).
-        self._file: h5py.File | None = h5py.File(self._partial, "w", rdcc_nbytes=0)
-        self._file.attrs.update(attrs or {})
+        self._file: h5py.File | None = None
+        try:  # a disk that fills up can fail these first writes too: then no partial file may stay behind
+            with _write_errors_as_os_errors(self._partial):
+                self._file = h5py.File(self._partial, "w", rdcc_nbytes=0)
+                self._file.attrs.update(attrs or {})
+        except BaseException:
+            self.abort()
+            raise
 
     @property
     def num_steps(self) -> int:
@@ -544,14 +550,15 @@ class LearningHistoryWriter:
 
     def abort(self) -> None:
         """Discard everything written so far (the final file never appears)."""
-        if self._file is not None:
-            file, self._file = self._file, None
-            try:
+        file, self._file = self._file, None
+        try:
+            if file is not None:
                 file.close()
-            except (OSError, RuntimeError):  # its last writes failed (a full disk): the file is being discarded
-                pass
-        self._partial.unlink(missing_ok=True)
-        UNFINISHED_FILES.discard(self._partial)
+        except (OSError, RuntimeError):  # its last writes failed (a full disk): the file is being discarded
+            pass
+        finally:  # whatever closing raised, the partial file goes
+            self._partial.unlink(missing_ok=True)
+            UNFINISHED_FILES.discard(self._partial)
 
     def __enter__(self) -> LearningHistoryWriter:
         return self
