@@ -83,10 +83,9 @@ def main() -> None:
     print("shot  own goal  other goals  ratio  hand to object  success")
     for shot in range(1, args.shots + 1):
         at_shot = [row for row in rows if row["shot"] == shot]
-        own = float(np.median([row["own_goal"] for row in at_shot]))
-        other = float(np.median([row["other_goals"] for row in at_shot]))
+        own, other, hand_to_object = (float(np.median([row[key] for row in at_shot]))
+                                      for key in ("own_goal", "other_goals", "hand_to_object"))
         success = np.mean([row["success"] for row in at_shot])
-        hand_to_object = float(np.median([row["hand_to_object"] for row in at_shot]))
         print(f"{shot:4d}  {own:8.3f}  {other:11.3f}  {own / other:5.2f}  {hand_to_object:14.3f}  {success:6.0%}")
     if args.out is not None:
         buffer = io.StringIO()

@@ -16,12 +16,13 @@ config.json: window length, expert distillation, the tasks it was trained on).
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 
 from vintix.agent.pretrained import resolve_checkpoint
+from vintix.model import Vintix
 from vintix.model.checkpoint import load_pretrained, read_metadata
 from vintix.train.data import WindowDataset, collate_windows, load_training_data
 from vintix.train.trainer import WindowLoss
@@ -30,11 +31,10 @@ BATCH = 16
 """Windows per forward pass."""
 
 
-def task_losses(checkpoint: Path, root: str, windows: int, seed: int) -> dict[str, np.ndarray]:
-    """Per-window loss of the model at `checkpoint` on `windows` windows a task of the dataset at `root`."""
-    extra = read_metadata(checkpoint)["extra"]
+def task_losses(model: Vintix, extra: dict[str, Any], root: str, windows: int, seed: int) -> dict[str, np.ndarray]:
+    """Per-window loss of `model`, whose checkpoint records `extra` (its tasks and training config), on
+    about `windows` windows a task of the dataset at `root`."""
     config = extra["train_config"]
-    model = load_pretrained(checkpoint).eval()
     data = load_training_data(root, tasks=extra["trained_tasks"], expert_distillation=config["expert_distillation"],
                               expert_tail_fraction=config["expert_tail_fraction"], expert_rows=config["expert_rows"])
     dataset = WindowDataset(data, config["window_len"] or model.config.context_len, seed=seed)
@@ -42,14 +42,14 @@ def task_losses(checkpoint: Path, root: str, windows: int, seed: int) -> dict[st
     losses: dict[str, list[float]] = {}
     with torch.no_grad():
         for start in range(0, windows * len(data.tasks), BATCH):
-            batch = [dataset[i] for i in range(start, start + BATCH)]
+            # collate_windows stacks windows group by group (sorted by name): sorted so, the losses it
+            # gives back are in the batch's order.
+            batch = sorted((dataset[i] for i in range(start, start + BATCH)), key=lambda w: str(w["group"]))
             names = [data.tasks[int(w["task_idx"])].name for w in batch]
             for window, name in zip(batch, names, strict=True):  # the dataset's task order is not the model's
                 window["task_idx"] = model.task_index(name)
-            # collate_windows groups windows by group name; one loss per window, in that order.
-            order = sorted(range(len(batch)), key=lambda i: str(batch[i]["group"]))
-            for i, value in zip(order, loss(collate_windows(batch)).tolist(), strict=True):
-                losses.setdefault(names[i], []).append(value)
+            for name, value in zip(names, loss(collate_windows(batch)).tolist(), strict=True):
+                losses.setdefault(name, []).append(value)
     return {name: np.asarray(values) for name, values in sorted(losses.items())}
 
 
@@ -62,9 +62,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=123, help="which windows are drawn")
     args = parser.parse_args()
     checkpoint = resolve_checkpoint(args.checkpoint)
+    model, extra = load_pretrained(checkpoint).eval(), read_metadata(checkpoint)["extra"]
     print(f"{checkpoint}: mean loss per window ± standard error")
     for root in args.data:
-        for task, values in task_losses(checkpoint, root, args.windows, args.seed).items():
+        for task, values in task_losses(model, extra, root, args.windows, args.seed).items():
             error = values.std(ddof=1) / np.sqrt(len(values)) if len(values) > 1 else float("nan")
             print(f"  {root}  {task:16s} {values.mean():.5f} ± {error:.5f}  ({len(values)} windows)")
 
