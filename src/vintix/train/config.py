@@ -73,7 +73,8 @@ class TrainConfig:
     task_sampling: str = "uniform"
     """'uniform' over tasks (the paper) or 'volume' (proportional to a task's steps)"""
     expert_distillation: bool = False
-    """ablation: learn the demonstrator's actions instead of the history's (expert distillation); see expert_rows"""
+    """learn the demonstrator's actions instead of the history's: the paper's ED ablation on expert histories, or
+    the recorded target (the demonstrator_action column) of in-context RL histories; see expert_rows"""
     expert_rows: str = "auto"
     """expert distillation on 'auto': every row, target = the stored demonstrator action, for tasks whose histories
     all store it (else 'tail'); 'tail': the noise-free tail only (paper)"""

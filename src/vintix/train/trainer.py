@@ -448,8 +448,8 @@ class Trainer:
             print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
                   f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device}; "
                   f"{where} at step {self.step}")
-            if cfg.expert_distillation:
-                print("expert distillation: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
+            if cfg.expert_distillation:  # the ED ablation, or (on every row) the recorded-target objective
+                print("demonstrator-action targets: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
         # Per group: summed window loss, windows, training FLOPs since the last log line.
         sums = torch.zeros(len(groups), 3, dtype=torch.float64, device=self.device)
         # disable=None: quiet when not on a terminal, where each redraw would be a line of the log
