@@ -49,7 +49,7 @@ def test_report_has_every_figure_and_the_aggregates_of_the_episodes(two_results,
     report = (tmp_path / "report" / "report.md").read_text()
     assert "| AD | `runs/ad`" in report and "| AD without reward | `runs/ad-no-reward`" in report
     assert all(f"]({'figures/' + name})" in report for name in expected)
-    assert "Reward-use gap" not in report  # two checkpoints, both fed true rewards: nothing to compare
+    assert "Reward-use gap" not in report  # two checkpoints, both fed true rewards: no reward ablation
 
     # the reach-v3 row of AD: first-shot IQM with CI, best-2-shot plateau, and the same of the success
     # rate (a plain mean over runs), from the episodes themselves
@@ -81,13 +81,43 @@ def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_ga
     success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True)
     cells = (f"| AD | zero | 3, paired by seed | {score[0]:+.2f} [{score[1]:+.2f}, {score[2]:+.2f}] | "
              f"{100 * success[0]:+.0f} pp [{100 * success[1]:+.0f}, {100 * success[2]:+.0f}] |")
-    lines = report.split("## Reward-use gap")[1].splitlines()
+    lines = report.split("## Reward-use gap")[1].split("## Between models")[0].splitlines()
     # One task, so its domain's gap is its own; InvertedPendulum was not run with zeros, the other
     # checkpoint is not compared.
     assert [line for line in lines if "| AD |" in line] == [f"| metaworld train {cells}", f"| reach-v3 {cells}"]
 
     alone = CliRunner().invoke(app, ["report", str(two_results / "ad-zero"), "--out", str(tmp_path / "alone")])
     assert alone.exit_code == 0 and "no folder of its checkpoint 'runs/ad'" in " ".join(alone.output.split())
+
+
+def test_two_checkpoints_fed_true_rewards_add_the_first_models_gap_over_the_other(two_results, tmp_path):
+    """The paper's ablations (AD − AD without rewards): converged score and success of the first model
+    given minus the other's, per domain and task, paired by seed; a zero-reward folder is no model."""
+    result = CliRunner().invoke(app, ["report", str(two_results / "ad"), str(two_results / "ad-zero"),
+                                      str(two_results / "ad-no-reward"), "--out", str(tmp_path / "report"),
+                                      "--plateau-shots", "2"])
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "## Between models" in report
+    ad, _ = load_results(two_results / "ad", "ours")  # the report's default table
+    nr, _ = load_results(two_results / "ad-no-reward", "ours")
+    lines = report.split("## Between models")[1].splitlines()
+    for task in ("reach-v3", "InvertedPendulum-v5"):
+        score = converged_gap_with_ci([(ad.scores[task], nr.scores[task])], 2, paired=True)
+        success = (converged_gap_with_ci([(ad.success[task], nr.success[task])], 2, paired=True)
+                   if task in ad.success else None)
+        success_cell = "—" if success is None else \
+            f"{signed(100 * success[0], 0)} pp [{signed(100 * success[1], 0)}, {signed(100 * success[2], 0)}]"
+        assert (f"| {task} | AD | AD without reward | 3, paired by seed | "
+                f"{signed(score[0], 2)} [{signed(score[1], 2)}, {signed(score[2], 2)}] | {success_cell} |") in lines
+    # one row per domain and per task: AD against AD without reward only, never against its own zero run
+    assert len([line for line in lines if line.startswith("| ") and "| AD |" in line]) == 4
+    assert "| AD (zero rewards)" not in report.split("## Between models")[1]
+
+
+def signed(value: float, digits: int) -> str:
+    """A report's signed number: a value that rounds to zero is +0, not -0."""
+    return f"{round(value, digits) + 0.0:+.{digits}f}"
 
 
 def test_the_converged_gap_pairs_runs_by_seed_and_resamples_within_tasks():

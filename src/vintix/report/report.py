@@ -11,7 +11,8 @@ also get their success rate (a plain mean over runs, shot 1 and converged).
 
 Folders of one checkpoint evaluated with true rewards and with zero or shuffled rewards fed back
 (`vintix eval --reward-input`) add a reward-use gap section: how much of the converged score the
-rewards earn.
+rewards earn. Folders of other checkpoints fed true rewards on the same prompt add a between-models
+section: the first model's converged score and success minus each other's (the paper's ablations).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import csv
 import json
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -285,6 +287,42 @@ def _gap_cells(true: Results, other: Results, variants: list[str], k: int) -> li
     return [runs, _score_gap(*score), success]
 
 
+def model_comparisons(results: list[Results]) -> list[tuple[Results, Results]]:
+    """(first model, other model) for each other checkpoint fed the true rewards on the same prompt as the
+    first true-reward folder given: the paper's ablations (AD against expert distillation, AD without
+    rewards) as differences of converged score and success."""
+    trues = [r for r in results if r.reward_input == "true" and r.run.get("checkpoint")]
+    if not trues:
+        return []
+    first = trues[0]
+    checkpoint, *prompt = _same_runs(first)
+    return [(first, r) for r in trues[1:] if _same_runs(r)[0] != checkpoint and list(_same_runs(r)[1:]) == prompt]
+
+
+def _gap_tables(pairs: list[tuple[Results, Results]], other_column: str, other_cell: Callable[[Results], str],
+                table: str, k: int) -> list[str]:
+    """Per-domain and per-task tables (markdown lines) of converged(first) − converged(other) with CIs
+    for (first, other) folder pairs; `other_cell` names the other folder in its column."""
+    columns = (f"model (true rewards) | {other_column} | runs | Δ converged score ({table}) | Δ converged success |"
+               "\n|---|---|---|---|---|---|")
+    domain_lines, task_lines = [f"| domain | {columns}"], [f"| task | {columns}"]
+    for first, other in pairs:
+        common = sorted(set(first.scores) & set(other.scores))
+        for domain in sorted({first.domains[v] for v in common}):
+            variants = [v for v in common if first.domains[v] == domain]
+            domain_lines.append(f"| {domain} | {first.label} | {other_cell(other)} | "
+                                + " | ".join(_gap_cells(first, other, variants, k)) + " |")
+        for variant in common:
+            task_lines.append(f"| {variant} | {first.label} | {other_cell(other)} | "
+                              + " | ".join(_gap_cells(first, other, [variant], k)) + " |")
+    return ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
+
+
+def _fed_instead(other: Results) -> str:
+    """What an ablated folder was fed, and its label where the label does not already say it."""
+    return other.reward_input if other.reward_input in other.label else f"{other.reward_input}: {other.label}"
+
+
 def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int) -> list[str]:
     """The report's reward-use gap section (markdown lines) for (true, ablated) folder pairs."""
     lines = ["\n## Reward-use gap\n",
@@ -296,20 +334,18 @@ def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int)
              "task's mean curve; a domain's Δ is the mean of its tasks' Δ. 95 % CIs: percentile bootstrap "
              "resampling runs within each task, a seed's two runs (same env, same Meta-World goal) together when "
              "both folders ran the same seeds.\n"]
-    columns = (f"model (true rewards) | fed back instead | runs | Δ converged score ({table}) | Δ converged success |"
-               "\n|---|---|---|---|---|---|")
-    domain_lines, task_lines = [f"| domain | {columns}"], [f"| task | {columns}"]
-    for true, other in pairs:
-        fed = other.reward_input if other.reward_input in other.label else f"{other.reward_input}: {other.label}"
-        common = sorted(set(true.scores) & set(other.scores))
-        for domain in sorted({true.domains[v] for v in common}):
-            variants = [v for v in common if true.domains[v] == domain]
-            domain_lines.append(f"| {domain} | {true.label} | {fed} | "
-                                + " | ".join(_gap_cells(true, other, variants, k)) + " |")
-        for variant in common:
-            task_lines.append(f"| {variant} | {true.label} | {fed} | "
-                              + " | ".join(_gap_cells(true, other, [variant], k)) + " |")
-    return lines + ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
+    return lines + _gap_tables(pairs, "fed back instead", _fed_instead, table, k)
+
+
+def model_comparison_section(pairs: list[tuple[Results, Results]], table: str, k: int) -> list[str]:
+    """The report's section (markdown lines) comparing the first true-reward model with the others."""
+    lines = ["\n## Between models\n",
+             "The first model given against each other model, all fed their true rewards on the same prompt: "
+             "the paper's ablations (AD against expert distillation, AD without rewards). "
+             f"Δ = converged(first) − converged(other), *converged* the best {k}-shot plateau of a task's mean "
+             "curve; a domain's Δ is the mean of its tasks' Δ; CIs as for the reward-use gap, runs paired by "
+             "seed when both folders ran the same seeds.\n"]
+    return lines + _gap_tables(pairs, "compared with", lambda other: other.label, table, k)
 
 
 def write_report(folders: list[Path], out: Path, table: str = "paper",
@@ -423,6 +459,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
         notes.append(f"fewer than {FEW_RUNS} runs, so confidence intervals that say little: {', '.join(few)}")
     if ablations:
         lines += reward_gap_section(ablations, table, plateau_shots)
+    comparisons = model_comparisons(results)
+    if comparisons:
+        lines += model_comparison_section(comparisons, table, plateau_shots)
     if notes:
         lines += ["\n## Notes\n"] + [f"- {n}" for n in notes]
     path = out / "report.md"
