@@ -272,17 +272,18 @@ def reward_ablations(results: list[Results]) -> tuple[list[tuple[Results, Result
     return pairs, notes
 
 
-def _gap_cells(true: Results, other: Results, variants: list[str], k: int) -> list[str]:
-    """Runs, and the mean over `variants` of converged(true) − converged(other) with its CI, for the
-    normalized score and (where every variant has one) the success rate."""
-    paired = all(true.seeds[v] == other.seeds[v] for v in variants)
+def _gap_cells(first: Results, other: Results, variants: list[str], k: int) -> list[str]:
+    """Runs, and the mean over `variants` of converged(first) − converged(other) with its CI, for the
+    normalized score and (where every variant has one) the success rate; `first` is the true-reward
+    folder of a reward ablation, or the first model of a comparison."""
+    paired = all(first.seeds[v] == other.seeds[v] for v in variants)
     if paired:
-        runs = f"{sum(len(true.seeds[v]) for v in variants)}, paired by seed"
+        runs = f"{sum(len(first.seeds[v]) for v in variants)}, paired by seed"
     else:
-        runs = f"{sum(len(true.seeds[v]) for v in variants)} vs {sum(len(other.seeds[v]) for v in variants)}"
-    score = converged_gap_with_ci([(true.scores[v], other.scores[v]) for v in variants], k, paired)
-    with_success = all(v in true.success and v in other.success for v in variants)
-    success = (_success_gap(*converged_gap_with_ci([(true.success[v], other.success[v]) for v in variants], k, paired))
+        runs = f"{sum(len(first.seeds[v]) for v in variants)} vs {sum(len(other.seeds[v]) for v in variants)}"
+    score = converged_gap_with_ci([(first.scores[v], other.scores[v]) for v in variants], k, paired)
+    with_success = all(v in first.success and v in other.success for v in variants)
+    success = (_success_gap(*converged_gap_with_ci([(first.success[v], other.success[v]) for v in variants], k, paired))
                if with_success else "—")
     return [runs, _score_gap(*score), success]
 
@@ -294,9 +295,14 @@ def model_comparisons(results: list[Results]) -> list[tuple[Results, Results]]:
     trues = [r for r in results if r.reward_input == "true" and r.run.get("checkpoint")]
     if not trues:
         return []
-    first = trues[0]
+    first, *others = trues
     checkpoint, *prompt = _same_runs(first)
-    return [(first, r) for r in trues[1:] if _same_runs(r)[0] != checkpoint and list(_same_runs(r)[1:]) == prompt]
+    pairs = []
+    for other in others:
+        other_checkpoint, *other_prompt = _same_runs(other)
+        if other_checkpoint != checkpoint and other_prompt == prompt:
+            pairs.append((first, other))
+    return pairs
 
 
 def _gap_tables(pairs: list[tuple[Results, Results]], other_column: str, other_cell: Callable[[Results], str],
