@@ -1,4 +1,5 @@
-"""The task registry: all 102 tasks of the paper (and the toy task), their dims, groups, splits and names."""
+"""The task registry: all 102 tasks of the paper (and the package's own hidden-goal tasks), their dims, groups,
+splits and names."""
 
 import pytest
 
@@ -7,11 +8,16 @@ from vintix.tasks import get_task, list_tasks, make_env, resolve_tasks
 
 
 def test_registry_has_every_task_of_the_paper():
-    counts = {d: len(list_tasks(domain=d)) for d in ("mujoco", "metaworld", "industrial_benchmark", "bidexhands")}
+    paper = [t for t in list_tasks() if t.paper_expert is not None]
+    counts = {d: len([t for t in paper if t.domain == d]) for d in ("mujoco", "metaworld", "industrial_benchmark",
+                                                                      "bidexhands")}
     assert counts == {"mujoco": 11, "metaworld": 50, "industrial_benchmark": 21, "bidexhands": 20}
-    assert len(list_tasks()) == 103  # and the toy task, which has no published scores
+    # and the package's own hidden-goal tasks, which have no published scores
+    assert {t.name for t in list_tasks()} - {t.name for t in paper} == {"point-goal-v1", "Reacher-hidden-v5"}
     toy = get_task("point-goal-v1")
     assert toy.domain == "toy" and toy.paper_expert is None and toy.paper_vintix_normalized is None
+    hidden = get_task("Reacher-hidden-v5")
+    assert hidden.domain == "mujoco" and hidden.group != get_task("Reacher-v5").group and hidden.paper_expert is None
 
 
 def test_splits_follow_the_paper():
@@ -37,7 +43,7 @@ def test_groups_share_dims_and_mujoco_has_one_group_per_env():
     for task in list_tasks():
         by_group.setdefault(task.group, set()).add((task.obs_dim, task.act_dim))
     assert all(len(dims) == 1 for dims in by_group.values())
-    assert len({t.group for t in list_tasks(domain="mujoco")}) == 11
+    assert len({t.group for t in list_tasks(domain="mujoco")}) == 12  # the paper's 11 and Reacher-hidden-v5
     assert {t.group for t in list_tasks(domain="metaworld")} == {"metaworld"}
 
 

@@ -417,7 +417,8 @@ def demonstrator_eval(
 
 @demonstrator_app.command("goal-blind")
 def demonstrator_goal_blind(
-    task: Annotated[list[str], typer.Option(help="task or domain (metaworld, toy); repeat for several")],
+    task: Annotated[list[str], typer.Option(
+        help="task or domain (metaworld, toy) or Reacher-hidden-v5; repeat for several")],
     seeds: Annotated[int, typer.Option(
         min=1, help="episodes per policy, env seeds first-seed, first-seed + 1, ...")] = 20,
     first_seed: Annotated[int, typer.Option(min=0)] = 100,
@@ -450,7 +451,7 @@ def demonstrator_goal_blind(
 
 @demonstrator_app.command("histories")
 def demonstrator_histories(
-    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World or toy)")],
+    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World, toy or Reacher-hidden-v5)")],
     behaviour: Annotated[str, typer.Option(help="how a demonstrator that never sees the goal plays: "
                                            "posterior-sampling, probing or probe-then-sample")] = "probe-then-sample",
     seeds: Annotated[int, typer.Option(min=1, help="histories, env seeds first-seed, first-seed + 1, ...")] = 20,

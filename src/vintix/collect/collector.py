@@ -79,7 +79,7 @@ class CollectionPlan:
     histories per call leave more of the process's time to the simulator, `vintix bench collect`)."""
     behaviour: str = "expert"
     """How the demonstrator plays: 'expert' (sees the hidden goal), or 'posterior-sampling' / 'probing' /
-    'probe-then-sample' (infers it from the rewards it earns; Meta-World and toy tasks;
+    'probe-then-sample' (infers it from the rewards it earns; Meta-World, toy and Reacher-hidden-v5 tasks;
     `vintix.demonstrators.posterior`)."""
     probe_margin: float = 0.0
     """With behaviour 'probing' or 'probe-then-sample': how far outside the goal box (in the goal's units)

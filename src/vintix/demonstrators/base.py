@@ -14,6 +14,7 @@ import numpy as np
 
 from vintix.errors import VintixError
 from vintix.tasks import get_task
+from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS
 
 
 class Demonstrator(Protocol):
@@ -41,8 +42,8 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
                       source: str | None = None, probe_margin: float = 0.0, aim: str = "hand") -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
-    tasks that have none. A `behaviour` other than "expert" wraps a scripted expert of a
-    hidden-goal task (Meta-World, toy) in a demonstrator that does not see the goal and infers it from rewards.
+    tasks that have none. A `behaviour` other than "expert" wraps a scripted expert of a hidden-goal task
+    (Meta-World, toy, Reacher-hidden-v5) in a demonstrator that does not see the goal and infers it from rewards.
     `source`: a demonstrator from outside the package instead (`external_demonstrator`). `probe_margin`: with
     behaviour 'probing' or 'probe-then-sample', how far outside the goal box the probe's corners lie. `aim`: what
     a scripted reach expert puts on the goal (`AIMS`), whatever the behaviour."""
@@ -66,12 +67,13 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     if behaviour != "expert":
         from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator, posterior_settings
 
-        if spec.domain not in DEFAULT_SETTINGS or weights is not None:
-            raise VintixError(f"{spec.name!r}: {behaviour} needs a scripted expert that can aim at a given goal "
-                              f"(tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.domain} task"
-                              f"{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
+        if spec.group not in DEFAULT_SETTINGS or weights is not None:
+            raise VintixError(f"{spec.name!r}: {behaviour} needs a hidden-goal task with a scripted expert that can "
+                              f"aim at a given goal (tasks of the groups {', '.join(sorted(DEFAULT_SETTINGS))}), not a "
+                              f"{spec.group} task{' or trained weights' if weights is not None else ''}; "
+                              "use behaviour 'expert'")
         expert = load_demonstrator(spec.name, aim=aim)
-        settings = posterior_settings(spec.domain, behaviour, probe_margin)
+        settings = posterior_settings(spec.group, behaviour, probe_margin)
         return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
     if weights is not None and spec.domain in ("metaworld", "bidexhands"):
         raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "
@@ -84,6 +86,12 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
         from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
 
         return ScriptedPointGoalDemonstrator()
+    if spec.name in HIDDEN_GOAL_MUJOCO_TASKS:
+        if weights is not None:
+            raise VintixError(f"{spec.name!r}'s expert is scripted (inverse kinematics): leave the weights out")
+        from vintix.demonstrators.scripted import ScriptedReacherDemonstrator
+
+        return ScriptedReacherDemonstrator()
     if spec.domain == "bidexhands":
         raise VintixError(f"no demonstrator for Bi-DexHands task {spec.name!r}: its envs need IsaacGym")
     from vintix.demonstrators.trained import TrainedDemonstrator

@@ -97,8 +97,8 @@ def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, comma
     spec = get_task(task)
     expert = load_demonstrator(spec.name)
     if not hasattr(expert, "act_toward"):
-        raise VintixError(f"{spec.name!r} has no hidden goal a scripted expert can be aimed at (Meta-World and toy "
-                          "tasks do); a goal-blind baseline needs one")
+        raise VintixError(f"{spec.name!r} has no hidden goal a scripted expert can be aimed at (Meta-World, toy and "
+                          "Reacher-hidden-v5 tasks do); a goal-blind baseline needs one")
     true_returns, true_success = episode_outcomes(spec.name, AimedExpert(expert, None), seeds, first_seed)  # type: ignore[arg-type]
     blind_returns, blind_success = episode_outcomes(spec.name, AimedExpert(expert, mean_goal(spec.name)),  # type: ignore[arg-type]
                                                     seeds, first_seed)

@@ -99,31 +99,37 @@ class PosteriorSettings:
     at 0, on 0.25 at 0.06 m, and the 7 episodes after it return 708-819 and 779-812"""
 
 
-# Per domain: Meta-World rewards lie in [0, 10], the toy task's in [0, 1].
-DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(), "toy": PosteriorSettings(reward_tolerance=0.05, update_every=1)}
+# Per encoder group of hidden-goal tasks: Meta-World rewards lie in [0, 10], the toy task's in [0, 1];
+# the hidden Reacher's give minus the fingertip's distance to the target (m), exactly (its control cost is
+# the action's, which the reward under each candidate includes).
+DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(),
+                    "point-goal": PosteriorSettings(reward_tolerance=0.05, update_every=1),
+                    "mujoco-reacher-hidden": PosteriorSettings(reward_tolerance=0.005, update_every=1)}
 
-# Steps at each probed corner, per domain, so that the probe fills the first episode: Meta-World's 3-D
-# goal boxes have 4 corners to probe (a tetrahedron) in a 100-step episode, the toy's range 2 ends in 10.
-PROBE_STEPS = {"metaworld": 25, "toy": 5}
+# Steps at each probed corner, per group, so that the probe fills the first episode: Meta-World's 3-D
+# goal boxes have 4 corners to probe (a tetrahedron) in a 100-step episode, the toy's range 2 ends in 10,
+# the hidden Reacher's square 2 opposite corners (beyond the arm's reach: it sweeps at full stretch) in 50.
+PROBE_STEPS = {"metaworld": 25, "point-goal": 5, "mujoco-reacher-hidden": 25}
 
-# The likelihood's tolerance of 'probe-then-sample', per domain: 8 times the default, so that the episodes
+# The likelihood's tolerance of 'probe-then-sample', per group: 8 times the default, so that the episodes
 # after the probe miss by a few centimetres on Meta-World reach (median end distance 4.7 cm in the second
 # episode, 2.8 cm in the eighth, 20 goals) instead of 1.5-2 cm: near the errors a model makes, which its
 # later episodes must correct from their rewards rather than repeat.
-SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "toy": 0.4}
+SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "point-goal": 0.4, "mujoco-reacher-hidden": 0.04}
 
 
-def posterior_settings(domain: str, behaviour: str, probe_margin: float = 0.0) -> PosteriorSettings:
-    """The settings of `behaviour` ('posterior-sampling', 'probing' or 'probe-then-sample') on tasks of `domain`,
-    the probe's corners `probe_margin` outside the goal box (`PosteriorSettings.probe_margin`)."""
-    settings = DEFAULT_SETTINGS[domain]
+def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0) -> PosteriorSettings:
+    """The settings of `behaviour` ('posterior-sampling', 'probing' or 'probe-then-sample') on hidden-goal tasks of
+    encoder group `group`, the probe's corners `probe_margin` outside the goal box
+    (`PosteriorSettings.probe_margin`)."""
+    settings = DEFAULT_SETTINGS[group]
     if behaviour == "posterior-sampling":
         return settings
-    probing = replace(settings, probe_steps=PROBE_STEPS[domain], probe_margin=probe_margin)
+    probing = replace(settings, probe_steps=PROBE_STEPS[group], probe_margin=probe_margin)
     if behaviour == "probing":
         return probing
     return replace(probing, sample_after_probe=True, probe_target=True,
-                   reward_tolerance=SAMPLE_AFTER_PROBE_TOLERANCE[domain])
+                   reward_tolerance=SAMPLE_AFTER_PROBE_TOLERANCE[group])
 
 
 def _probe_corners(low: np.ndarray, high: np.ndarray) -> np.ndarray:

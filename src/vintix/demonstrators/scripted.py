@@ -1,4 +1,4 @@
-"""Scripted experts: Meta-World's (`metaworld.policies`, one per task) and the toy task's.
+"""Scripted experts: Meta-World's (`metaworld.policies`, one per task), the toy task's and the hidden Reacher's.
 
 Meta-World's read the goal from the last 3 observation entries, which the ML45 setting hides; the env
 gives the true goal to demonstrators through `expert_observation`. The model never sees it. Both can
@@ -16,7 +16,7 @@ import numpy as np
 from metaworld.policies import ENV_POLICY_MAP
 
 from vintix.demonstrators.base import check_aim
-from vintix.tasks import toy
+from vintix.tasks import reacher_hidden, toy
 from vintix.tasks.metaworld import hand_to_gripper_centre
 
 
@@ -48,3 +48,14 @@ class ScriptedPointGoalDemonstrator:
 
     def act_toward(self, observations: np.ndarray, goals: np.ndarray) -> np.ndarray:
         return toy.action_toward(np.asarray(observations, dtype=np.float64), goals)
+
+
+class ScriptedReacherDemonstrator:
+    """`Reacher-hidden-v5`'s expert (`vintix.tasks.reacher_hidden.action_toward`): inverse kinematics and a
+    PD controller, aimed at the true target."""
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        return self.act_toward(observations, np.stack([env.unwrapped.true_goal for env in envs]))  # type: ignore[attr-defined]
+
+    def act_toward(self, observations: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        return reacher_hidden.action_toward(np.asarray(observations, dtype=np.float64), goals)

@@ -17,18 +17,19 @@ import gymnasium as gym
 import numpy as np
 
 from vintix.errors import MissingDependencyError, UnsupportedOptionError
-from vintix.tasks.registry import TaskSpec, builtin_tasks, get_task
+from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, TaskSpec, builtin_tasks, get_task
 
 NAMESPACE = "vintix"
 
 
 def gymnasium_id(spec: TaskSpec) -> str:
     """The id under which gymnasium knows the task."""
-    return spec.name if spec.domain == "mujoco" else f"{NAMESPACE}/{spec.name}"
+    gymnasiums_own = spec.domain == "mujoco" and spec.name not in HIDDEN_GOAL_MUJOCO_TASKS
+    return spec.name if gymnasiums_own else f"{NAMESPACE}/{spec.name}"
 
 
 def register_gymnasium_envs() -> None:
-    """Register the Meta-World and Industrial Benchmark tasks with gymnasium (idempotent). Runs when
+    """Register the Meta-World, Industrial Benchmark and hidden-goal MuJoCo tasks with gymnasium (idempotent). Runs when
     `vintix.tasks` is imported, so it reads the package's own tasks only: task plug-ins, which may import
     vintix themselves, load at the first lookup."""
     for spec in builtin_tasks("metaworld"):
@@ -45,6 +46,14 @@ def register_gymnasium_envs() -> None:
                 gymnasium_id(spec),
                 entry_point="vintix.tasks.industrial_benchmark:IndustrialBenchmarkEnv",
                 kwargs={"setpoint": float(spec.name.split("-")[2])},
+                max_episode_steps=spec.episode_length,
+            )
+    for spec in builtin_tasks("mujoco"):
+        if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and gymnasium_id(spec) not in gym.registry:
+            gym.register(
+                gymnasium_id(spec),
+                entry_point="vintix.tasks.reacher_hidden:ReacherHiddenEnv",
+                kwargs={"episode_length": spec.episode_length},
                 max_episode_steps=spec.episode_length,
             )
 
@@ -70,7 +79,10 @@ def _make_mujoco(spec: TaskSpec, seed: int | None, viscosity: float | None = Non
                  gravity_scale: float | None = None, render_mode: str | None = None) -> gym.Env:
     from vintix.tasks.mujoco import make_mujoco_env
 
-    return make_mujoco_env(spec, viscosity=viscosity, gravity_scale=gravity_scale, render_mode=render_mode)
+    # A hidden-goal task draws its hidden target from the seed it is made with, as Meta-World's do.
+    hidden_goal = {"seed": seed} if spec.name in HIDDEN_GOAL_MUJOCO_TASKS else {}
+    return make_mujoco_env(gymnasium_id(spec), viscosity=viscosity, gravity_scale=gravity_scale,
+                           render_mode=render_mode, **hidden_goal)
 
 
 def _make_metaworld(spec: TaskSpec, seed: int | None, episode_length: int | None = None,

@@ -7,22 +7,23 @@ they hold for the env's whole life; the agent is never told about them.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import gymnasium as gym
 
 from vintix.errors import UnsupportedOptionError
-from vintix.tasks.registry import TaskSpec
 
 
 def make_mujoco_env(
-    spec: TaskSpec,
+    env_id: str,
     viscosity: float | None = None,
     gravity_scale: float | None = None,
     render_mode: str | None = None,
+    **env_kwargs: Any,
 ) -> gym.Env:
-    """gymnasium's env for `spec`, optionally with another viscosity (paper: 0.05, 0.1) or gravity
-    scaled by `gravity_scale` (paper: 0.9, 1.1)."""
-    env = gym.make(spec.name, render_mode=render_mode)
+    """gymnasium's env `env_id` (made with `env_kwargs`), optionally with another viscosity (paper: 0.05,
+    0.1) or gravity scaled by `gravity_scale` (paper: 0.9, 1.1)."""
+    env = gym.make(env_id, render_mode=render_mode, **env_kwargs)
     try:
         apply_physics_variation(env, viscosity=viscosity, gravity_scale=gravity_scale)
     except BaseException:

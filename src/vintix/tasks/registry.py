@@ -1,4 +1,4 @@
-"""The registry of every task of the Vintix paper (102 tasks in 4 domains), plus one toy task.
+"""The registry of every task of the Vintix paper (102 tasks in 4 domains), plus the package's own hidden-goal tasks.
 
 The table ships inside the package (`paper_tasks.csv`, built by `scripts/build_task_table.py` from
 the paper's appendix tables) so nothing outside the package is read at run time.
@@ -9,7 +9,8 @@ accepted as aliases of the `-v5` task (Pusher too, although gymnasium's own Push
 on mujoco 3: the alias makes the v5 env). Meta-World tasks use metaworld 3.x's `-v3` ids; the
 paper's bare names and `-v2` names are aliases. Industrial Benchmark is `industrial-benchmark-<p>-v1`
 (alias `IB-p-<p>`); Bi-DexHands uses the dataset's `Hand-*` names (alias: the score table's `shadowhand*`).
-The toy domain's `point-goal-v1` (`vintix.tasks.toy`) is not a paper task and has no published scores.
+The toy domain's `point-goal-v1` (`vintix.tasks.toy`) and the hidden-goal MuJoCo tasks
+(`Reacher-hidden-v5`, `vintix.tasks.reacher_hidden`) are not paper tasks and have no published scores.
 """
 
 from __future__ import annotations
@@ -118,11 +119,23 @@ def _toy_tasks() -> list[TaskSpec]:
                      paper_histories=0)]
 
 
+HIDDEN_GOAL_MUJOCO_TASKS = ("Reacher-hidden-v5",)
+"""MuJoCo tasks of the package's own whose goal only the rewards reveal (not the paper's; no published scores)."""
+
+
+def _hidden_goal_mujoco_tasks() -> list[TaskSpec]:
+    # Reacher-v5's episode length and reward scale; its own encoder group, since it observes 6 of Reacher's 10
+    # entries (`vintix.tasks.reacher_hidden`).
+    return [TaskSpec(name="Reacher-hidden-v5", domain="mujoco", group="mujoco-reacher-hidden", obs_dim=6, act_dim=2,
+                     episode_length=50, reward_scale=0.1, split="train", aliases=(), paper_random=None,
+                     paper_expert=None, paper_vintix_normalized=None, paper_history_length=0, paper_histories=0)]
+
+
 @cache
 def _builtin_tasks() -> dict[str, TaskSpec]:
     table = resources.files("vintix.tasks").joinpath("paper_tasks.csv").read_text()
     paper = list(map(_spec_from_row, csv.DictReader(table.splitlines())))
-    return {spec.name: spec for spec in paper + _toy_tasks()}
+    return {spec.name: spec for spec in paper + _toy_tasks() + _hidden_goal_mujoco_tasks()}
 
 
 def builtin_tasks(domain: str) -> list[TaskSpec]:
