@@ -751,7 +751,7 @@ def train_command(
 
 
 _SNAPSHOT_HELP = ("the authors' release snapshot folder (model.pth, config.json, metadata.json), fetched by you: "
-                  "huggingface-cli download dunnolab/Vintix --local-dir DIR")
+                  "hf download dunnolab/Vintix --local-dir DIR")
 
 
 @app.command("import-official")

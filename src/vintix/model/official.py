@@ -331,7 +331,7 @@ def is_official_snapshot(directory: str | os.PathLike[str]) -> bool:
 def _read_json(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise OfficialFormatError(f"{path.parent}: no {path.name}; a release snapshot holds {WEIGHTS}, {CONFIG} "
-                                  f"and {METADATA} (huggingface-cli download dunnolab/Vintix --local-dir DIR)")
+                                  f"and {METADATA} (hf download dunnolab/Vintix --local-dir DIR)")
     try:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
