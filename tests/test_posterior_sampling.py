@@ -10,7 +10,8 @@ from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsEr
 from vintix.data import LearningHistory
 from vintix.demonstrators import PosteriorSamplingDemonstrator, load_demonstrator
 from vintix.demonstrators.goal_blind import goal_blind_baseline, observation_spread_across_goals, read_goal_blind
-from vintix.demonstrators.scores import history_outcomes
+from vintix.demonstrators.posterior import FumblingExpert
+from vintix.demonstrators.scores import episode_outcomes, history_outcomes
 from vintix.errors import VintixError
 from vintix.tasks import make_env
 from vintix.tasks.toy import EPISODE_LENGTH, START, SUCCESS_RADIUS
@@ -198,3 +199,39 @@ def test_demonstrator_histories_prints_how_a_goal_inferring_demonstrator_does_ep
     assert success[1] <= 0.4 and success[2] >= 0.9  # the probe, then the goal its rewards revealed
     result = runner.invoke(app, ["demonstrator", "histories", "--task", "point-goal-v1", "--behaviour", "expert"])
     assert result.exit_code == 2 and "does not learn within a history" in " ".join(result.output.split())
+
+
+def test_lapses_miss_after_the_goal_is_found_and_are_recorded_so_a_collection_cannot_mix_them(tmp_path):
+    """With lapses, some episodes after the first aimed one aim at a prior draw: they end far from the goal the
+    episodes before and after them reach, while the recorded target stays the goal-aware expert."""
+    seeds, episodes, task = range(100, 120), 6, "Reacher-hidden-v5"
+    steady = play_episodes(task, seeds, episodes, behaviour="probe-then-sample")
+    lapsing = history_outcomes(task, load_demonstrator(task, behaviour="probe-then-sample", lapse_probability=0.5),
+                               seeds, episodes).success
+    assert np.array_equal(lapsing[:, :2], steady[:, :2])  # the probe and the first aimed episode never lapse
+    assert steady[:, 2:].mean() >= 0.9 and lapsing[:, 2:].mean() <= steady[:, 2:].mean() - 0.2
+    plan = CollectionPlan("point-goal-v1", histories=1, steps=4 * EPISODE_LENGTH, schedule=NO_NOISE,
+                          behaviour="probe-then-sample", lapse_probability=0.5)
+    with LearningHistory(collect(plan, tmp_path)[0].path) as history:
+        assert history.attrs["lapse_probability"] == 0.5
+    with pytest.raises(CollectionSettingsError, match="lapse_probability"):
+        collect(dataclasses.replace(plan, lapse_probability=0.0), tmp_path)
+    for behaviour, probability in (("probing", 0.5), ("probe-then-sample", 1.5)):
+        with pytest.raises(VintixError, match="lapse_probability"):
+            load_demonstrator("reach-v3", behaviour=behaviour, lapse_probability=probability)
+
+
+def test_a_fumbling_lapse_holds_the_gripper_open_so_pick_place_fails_where_the_expert_succeeds():
+    """The other kind of lapse, for experts that handle an object: aimed right, the object never held."""
+    expert = load_demonstrator("pick-place-v3")
+
+    class Fumbled:
+        def act(self, observations, envs):
+            return expert.fumble(expert.act(observations, envs))
+
+    assert isinstance(expert, FumblingExpert) and not isinstance(load_demonstrator("Reacher-hidden-v5"), FumblingExpert)
+    assert episode_outcomes("pick-place-v3", expert, 3, 100)[1].mean() == 1.0
+    assert episode_outcomes("pick-place-v3", Fumbled(), 3, 100)[1].mean() == 0.0
+    demonstrator = load_demonstrator("pick-place-v3", behaviour="probe-then-sample", lapse_probability=1.0)
+    outcomes = history_outcomes("pick-place-v3", demonstrator, range(100, 106), episodes=4)
+    assert outcomes.success[:, 2:].mean() <= 0.5  # every episode from the third on lapses, half of them fumbling

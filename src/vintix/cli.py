@@ -461,6 +461,9 @@ def demonstrator_histories(
         help="how far outside the goal box the probed corners lie (probing, probe-then-sample)")] = 0.0,
     aim: Annotated[str, typer.Option(help="what the expert puts on the goal: hand, or gripper-centre (reach tasks)")]
         = "hand",
+    lapse_probability: Annotated[float, typer.Option(
+        help="probe-then-sample: the chance that an episode after the first aimed one is a lapse (aimed at a prior "
+             "draw, or its object mishandled)")] = 0.0,
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
@@ -469,7 +472,8 @@ def demonstrator_histories(
     from vintix.demonstrators.scores import history_outcomes
 
     try:
-        demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim)
+        demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim,
+                                         lapse_probability=lapse_probability)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
             inferring = ", ".join(b for b in BEHAVIOURS if b != "expert")
             raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
@@ -479,6 +483,7 @@ def demonstrator_histories(
         raise _fail(error) from None
     settings = f", probe margin {probe_margin}" if probe_margin else ""
     settings += f", aiming the {aim}" if aim != "hand" else ""
+    settings += f", lapses at {lapse_probability}" if lapse_probability else ""
     table = Table(title=f"{task}, {behaviour}{settings}: {seeds} histories "
                         f"(env seeds {first_seed}..{first_seed + seeds - 1})")
     for column in ("episode", "success", "mean return", "median end distance to goal"):

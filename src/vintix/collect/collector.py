@@ -84,6 +84,10 @@ class CollectionPlan:
     probe_margin: float = 0.0
     """With behaviour 'probing' or 'probe-then-sample': how far outside the goal box (in the goal's units)
     the corners its first episode probes lie (`PosteriorSettings.probe_margin`)."""
+    lapse_probability: float = 0.0
+    """With behaviour 'probe-then-sample': the chance that an episode after the first aimed one is a lapse, a clean
+    failure (aimed at a goal drawn from the prior, or its object mishandled) followed by aimed episodes again
+    (`PosteriorSettings.lapse_probability`)."""
     aim: str = "hand"
     """What a scripted reach expert puts on the goal: 'hand' (Meta-World's policy) or 'gripper-centre' (what
     reach's success measures; `vintix.demonstrators.base.AIMS`)."""
@@ -119,6 +123,8 @@ class CollectionPlan:
         behaviour: dict[str, Any] = {} if self.behaviour == "expert" else {"behaviour": self.behaviour}
         if self.probe_margin:
             behaviour["probe_margin"] = self.probe_margin
+        if self.lapse_probability:
+            behaviour["lapse_probability"] = self.lapse_probability
         if self.aim != "hand":
             behaviour["aim"] = self.aim
         if self.demonstrator is not None:
@@ -129,7 +135,8 @@ class CollectionPlan:
     def load_demonstrator(self) -> Demonstrator:
         """The demonstrator this plan's histories are played by."""
         return load_demonstrator(get_task(self.task).name, behaviour=self.behaviour, source=self.demonstrator,
-                                 probe_margin=self.probe_margin, aim=self.aim)
+                                 probe_margin=self.probe_margin, aim=self.aim,
+                                 lapse_probability=self.lapse_probability)
 
 
 @dataclass(frozen=True)
@@ -341,7 +348,8 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
         recorded.setdefault("pilot_steps", 0)
         # recorded only when not the default
-        for key, default in (("behaviour", "expert"), ("probe_margin", 0.0), ("aim", "hand")):
+        for key, default in (("behaviour", "expert"), ("probe_margin", 0.0), ("aim", "hand"),
+                             ("lapse_probability", 0.0)):
             found.setdefault(key, default)
             recorded.setdefault(key, default)
         if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare

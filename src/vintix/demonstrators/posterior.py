@@ -49,6 +49,15 @@ class GoalConditionedExpert(Demonstrator, Protocol):
 
 
 @runtime_checkable
+class FumblingExpert(Protocol):
+    """An expert of tasks with an object to handle, which knows how to mishandle it (a lapse's failure)."""
+
+    def fumble(self, actions: np.ndarray) -> np.ndarray:
+        """`actions` [n, act_dim] changed so that the object is not handled (Meta-World: the gripper held open)."""
+        ...
+
+
+@runtime_checkable
 class GoalInferringDemonstrator(Demonstrator, Protocol):
     """A demonstrator that learns within a history: the collector tells it what each step earned."""
 
@@ -97,6 +106,12 @@ class PosteriorSettings:
     units), so that the probe passes through fewer goals by chance while its rewards still place them.
     Meta-World reach, probe-then-sample, 20 unseen goals: the probing episode succeeds on 0.50 of them
     at 0, on 0.25 at 0.06 m, and the 7 episodes after it return 708-819 and 779-812"""
+    lapse_probability: float = 0.0
+    """with sample_after_probe: the chance that an episode after the first aimed one is a lapse, a clean episode
+    that fails: aimed at a goal drawn from the prior, or, for an expert that handles an object (`fumble`), aimed
+    at its guess with the object mishandled (either with equal chance). Later episodes aim at the posterior
+    again, and every target stays the goal-aware expert's action, so the episode after a failure is never its
+    copy: a model that learned to repeat its last episode repeats its own failures for good"""
 
 
 # Per encoder group of hidden-goal tasks: Meta-World rewards lie in [0, 10], the toy task's in [0, 1];
@@ -118,10 +133,11 @@ PROBE_STEPS = {"metaworld": 25, "point-goal": 5, "mujoco-reacher-hidden": 25}
 SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "point-goal": 0.4, "mujoco-reacher-hidden": 0.04}
 
 
-def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0) -> PosteriorSettings:
+def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0,
+                       lapse_probability: float = 0.0) -> PosteriorSettings:
     """The settings of `behaviour` ('posterior-sampling', 'probing' or 'probe-then-sample') on hidden-goal tasks of
-    encoder group `group`, the probe's corners `probe_margin` outside the goal box
-    (`PosteriorSettings.probe_margin`)."""
+    encoder group `group`, the probe's corners `probe_margin` outside the goal box (`PosteriorSettings.probe_margin`),
+    with 'probe-then-sample' a lapse in an episode after the first aimed one at `lapse_probability`."""
     settings = DEFAULT_SETTINGS[group]
     if behaviour == "posterior-sampling":
         return settings
@@ -129,7 +145,7 @@ def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0) ->
     if behaviour == "probing":
         return probing
     return replace(probing, sample_after_probe=True, probe_target=True,
-                   reward_tolerance=SAMPLE_AFTER_PROBE_TOLERANCE[group])
+                   reward_tolerance=SAMPLE_AFTER_PROBE_TOLERANCE[group], lapse_probability=lapse_probability)
 
 
 def _probe_corners(low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -148,10 +164,13 @@ class _GoalPosterior:
     def __init__(self, box: tuple[np.ndarray, np.ndarray], rng: np.random.Generator, settings: PosteriorSettings,
                  candidates: np.ndarray) -> None:
         self.candidates, self.rng, self.settings = candidates, rng, settings
+        self.prior_draws = candidates.copy()  # what a lapse aims at: goals drawn from the prior
         self.log_weights = np.zeros(len(candidates))
         self.low, self.high = box
         self.min_jitter = settings.min_jitter * candidates.std(axis=0)
         self.steps, self.episode = 0, 0
+        self.fumbling = False
+        """whether this episode is a lapse that mishandles the object"""
         self.corners = _probe_corners(self.low - settings.probe_margin, self.high + settings.probe_margin)
         self.guess = self._draw()
 
@@ -177,9 +196,11 @@ class _GoalPosterior:
     def _draw(self) -> np.ndarray:
         return self.candidates[self.rng.choice(len(self.candidates), p=self._weights())]
 
-    def next_episode(self) -> None:
+    def next_episode(self, can_fumble: bool = False) -> None:
         """Draw the goal of the next episode, after resampling the candidates by weight and jittering
-        them if the weights have degenerated (effective sample size below half)."""
+        them if the weights have degenerated (effective sample size below half); or, at the lapse
+        probability, make the episode a lapse (`PosteriorSettings.lapse_probability`: with `can_fumble`, half
+        of the lapses mishandle the object instead of aiming at a prior draw)."""
         weights = self._weights()
         if 1.0 / np.sum(weights**2) < len(weights) / 2:
             self._resample_and_jitter()
@@ -187,6 +208,11 @@ class _GoalPosterior:
         self.guess = self.candidates[np.argmax(self.log_weights)] if aims_best else self._draw()
         self.steps = 0
         self.episode += 1
+        self.fumbling = False
+        if self.episode >= 2 and self.rng.random() < self.settings.lapse_probability:
+            self.fumbling = can_fumble and bool(self.rng.random() < 0.5)
+            if not self.fumbling:
+                self.guess = self.prior_draws[self.rng.integers(len(self.prior_draws))]
 
     def _resample_and_jitter(self) -> None:
         chosen = self.candidates[self.rng.choice(len(self.candidates), size=len(self.candidates), p=self._weights())]
@@ -214,7 +240,11 @@ class PosteriorSamplingDemonstrator:
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         if len(self._posteriors) != len(envs):
             raise RuntimeError("PosteriorSamplingDemonstrator.begin(envs, rngs) must come before act")
-        return self.expert.act_toward(observations, np.stack([p.aim() for p in self._posteriors]))
+        actions = self.expert.act_toward(observations, np.stack([p.aim() for p in self._posteriors]))
+        fumbling = np.array([p.fumbling for p in self._posteriors])
+        if fumbling.any():
+            actions[fumbling] = self.expert.fumble(actions[fumbling])  # type: ignore[attr-defined]
+        return actions
 
     def expert_act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         expert = self.expert.act(observations, envs)
@@ -230,4 +260,4 @@ class PosteriorSamplingDemonstrator:
             rewards = env.unwrapped.rewards_under_goals(posterior.candidates, action)  # type: ignore[attr-defined]
             posterior.update(rewards, reward)
         if episode_end:
-            posterior.next_episode()
+            posterior.next_episode(can_fumble=isinstance(self.expert, FumblingExpert))

@@ -39,6 +39,13 @@ class ScriptedMetaWorldDemonstrator:
         full[:, -3:] = goals + self.aim_offset
         return np.stack([self.policy.get_action(o) for o in full])
 
+    @staticmethod
+    def fumble(actions: np.ndarray) -> np.ndarray:
+        """`actions` with the gripper held open (its effort, the 4th entry, at -1): the object is never held."""
+        fumbled = np.array(actions, copy=True)
+        fumbled[:, 3] = -1.0
+        return fumbled
+
 
 class ScriptedPointGoalDemonstrator:
     """The toy task's expert (`vintix.tasks.toy`): straight at the goal."""
