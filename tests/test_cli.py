@@ -20,11 +20,11 @@ def test_version_prints_the_installed_package_version():
     assert result.exit_code == 0 and result.output.strip() == f"vintix {version('vintix')}"
 
 
-def test_tasks_lists_the_papers_102_and_the_toy_task():
+def test_tasks_lists_the_papers_102_and_the_packages_two_hidden_goal_tasks():
     result = runner.invoke(app, ["tasks"])
     assert result.exit_code == 0
-    assert "103 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
-    assert "point-goal-v1" in result.output
+    assert "104 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
+    assert "point-goal-v1" in result.output and "Reacher-hidden-v5" in result.output
 
 
 def test_tasks_filters_by_domain_and_split():
@@ -145,15 +145,15 @@ def test_python_dash_m_vintix_runs_the_cli():
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "mujoco"],
                             capture_output=True, text=True, env=env, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert "11 tasks" in result.stdout and "Pusher-v5" in result.stdout
+    assert "12 tasks" in result.stdout and "Pusher-v5" in result.stdout  # the paper's 11 and Reacher-hidden-v5
     usage = subprocess.run([sys.executable, "-m", "vintix", "--help"], capture_output=True, text=True, env=env,
                            timeout=120)
     assert usage.returncode == 0 and "Usage: vintix" in usage.stdout
 
 
 def test_help_keeps_the_optional_extra_to_install_for_ray():
-    for command in ("collect", "eval"):
-        result = runner.invoke(app, [command, "--help"])
+    for command in ("collect", "eval"):  # wide enough that the help's box never splits the name
+        result = runner.invoke(app, [command, "--help"], env={"COLUMNS": "200"})
         assert result.exit_code == 0 and "'vintix[cluster]'" in result.output  # not eaten as rich markup
 
 

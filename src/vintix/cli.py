@@ -60,8 +60,10 @@ app.add_typer(bench_app, name="bench")
 # The backslash keeps typer's rich help from reading "[cluster]" as markup and dropping it.
 _RAY_HELP = ("spread the work over a Ray cluster: 'auto' (the running one, else a local instance) or its address, "
              "e.g. host:6379 or ray://host:10001; needs pip install 'vintix\\[cluster]'")
-# Piped or logged output gets room for the wide tables instead of rich's default 80 columns.
-console = Console(width=None if sys.stdout.isatty() else 160)
+# Piped or logged output gets room for the wide tables instead of rich's default 80 columns, and its lines of
+# text are never hard-wrapped: an error naming a long path stays one line that a log or a grep sees whole.
+_ON_TERMINAL = sys.stdout.isatty()
+console = Console(width=None if _ON_TERMINAL else 160, soft_wrap=not _ON_TERMINAL)
 
 
 _OS_ERROR_FIXES = {
