@@ -43,6 +43,18 @@ def test_the_hub_mixin_saves_a_model_card_and_loads_a_local_folder_strictly(tmp_
         Vintix.from_pretrained(str(tmp_path / "ckpt"))
 
 
+def test_the_mixins_own_save_pretrained_writes_a_filled_model_card(tmp_path):
+    """What push_to_hub would publish: the model's size and facts, never the template's blanks."""
+    from vintix.model.model import count_parameters
+
+    model = make_model()
+    model.checkpoint_extra = {"step": 30, "tokens": 900, "trained_tasks": ["a1"]}
+    model.save_pretrained(tmp_path)  # huggingface_hub's method, no vintix arguments
+    card = (tmp_path / "README.md").read_text()
+    assert "{{" not in card and f"vintix: {count_parameters(model):,} parameters" in card
+    assert "step 30, 900 tokens on a1" in card
+
+
 def test_a_checkpoint_written_before_the_hub_layout_still_loads(tmp_path):
     model = make_model()
     save_pretrained(model, tmp_path, extra={"step": 3})

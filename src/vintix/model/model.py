@@ -516,6 +516,15 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
 
         write_checkpoint(self, save_directory)
 
+    def generate_model_card(self, *args: Any, **kwargs: Any) -> Any:
+        """The mixin's model card with every field filled, so that ``save_pretrained(folder)`` or ``push_to_hub``
+        called directly shows this model's size and training facts, never the template's blanks; fields given
+        (`vintix.model.save_pretrained`'s) win."""
+        from vintix.model.checkpoint import model_card_fields
+
+        fields = model_card_fields(self, self.checkpoint_extra, details="", name="A Vintix model")
+        return super().generate_model_card(*args, **{**fields, **kwargs})
+
     @classmethod
     def _from_pretrained(cls, *, model_id: str, revision: str | None = None, cache_dir: str | Path | None = None,
                          force_download: bool = False, local_files_only: bool = False, token: str | bool | None = None,
