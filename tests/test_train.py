@@ -323,6 +323,20 @@ def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):
         make_config(metaworld_data, tmp_path / "run", expert_rows="all")
 
 
+def test_off_a_terminal_training_says_how_long_it_will_take_and_reports_each_selection(metaworld_data, tmp_path,
+                                                                                         capsys):
+    """A run logged to a file shows its progress: the time it will take after its first logged steps, then a line
+    at each in-context selection (and a minute) with the step, loss, speed, time left and score."""
+    config = make_config(metaworld_data, tmp_path / "run", max_steps=6, select_every=2, log_every=2)
+    Trainer(config, scorer=lambda model, tasks: Selection(0.25, reward_use_gap=0.125)).run()
+    lines = capsys.readouterr().out.splitlines()
+    estimate = next(line for line in lines if "steps/s on this machine" in line)
+    assert "steps 2 to 6 take about" in estimate
+    reports = [line for line in lines if line.startswith("step 4/6") or line.startswith("step 6/6")]
+    assert len(reports) == 2 and all("loss" in r and "left" in r and "success" not in r for r in reports)
+    assert reports[0].endswith("in context: score 0.250, reward-use gap +0.125")
+
+
 def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path):
     """The CLI wires the real scorer: cold-start shots on seeds no history used, score in the log."""
     out = tmp_path / "run"

@@ -223,6 +223,44 @@ def init_distributed(device_name: str) -> tuple[Distributed, torch.device]:
 _TENSORBOARD_TAGS = {"in_context_score": "in_context/score", "reward_use_gap": "in_context/reward_use_gap"}
 
 
+def _duration(seconds: float) -> str:
+    minutes = round(seconds / 60)
+    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{max(minutes, 1)} min"
+
+
+class ProgressReport:
+    """Lines a person reads while a run trains: after its first logged steps, how long the run will take on this
+    machine; then, off a terminal (a log file, where tqdm's bar is off), a line a minute and one at every
+    in-context selection: step, loss, steps/s, time left, and the selection's score. Steps per second count
+    the run's selections and checkpoints too, so the time left is wall time."""
+
+    EVERY_S = 60.0
+
+    def __init__(self, step: int, stop: int, metric: str, on_terminal: bool) -> None:
+        self.first_step, self.stop, self.metric, self.on_terminal = step, stop, metric, on_terminal
+        self.started = self.last_line = time.perf_counter()
+        self.estimated = False
+
+    def log_step(self, step: int, loss: float, selection: Selection) -> None:
+        now = time.perf_counter()
+        per_s = (step - self.first_step) / max(now - self.started, 1e-9)
+        left = _duration((self.stop - step) / per_s) if per_s > 0 else "unknown"
+        if not self.estimated:
+            self.estimated = True
+            print(f"{per_s:.2f} steps/s on this machine: steps {step:,} to {self.stop:,} take about {left} more, "
+                  "plus the in-context selections", flush=True)
+            return
+        selected = math.isfinite(selection.score)
+        if self.on_terminal or not (selected or now - self.last_line >= self.EVERY_S or step == self.stop):
+            return
+        self.last_line = now
+        scored = f"; in context: {self.metric} {selection.score:.3f}" if selected else ""
+        if selected and math.isfinite(selection.reward_use_gap):
+            scored += f", reward-use gap {selection.reward_use_gap:+.3f}"
+        print(f"step {step:,}/{self.stop:,} ({step / self.stop:.0%}): loss {loss:.4f}, {per_s:.2f} steps/s, "
+              f"{left} left{scored}", flush=True)
+
+
 class MetricsLog:
     """One CSV row per log step (and TensorBoard scalars); a resumed run first drops rows past its step."""
 
@@ -456,6 +494,7 @@ class Trainer:
         progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train",
                         disable=None if self.dist.is_main else True, dynamic_ncols=True)
         last_time, last_tokens, last_dir = time.perf_counter(), self.tokens, None
+        report = ProgressReport(self.step, stop, cfg.select_metric, on_terminal=not progress.disable)
         # However the loop ends (an error, a full disk, Ctrl-C), the log and TensorBoard files are closed.
         try:
             while self.step < stop:
@@ -513,6 +552,7 @@ class Trainer:
                         shown_best = {"best": f"{self.best_score:.3f}"} if self.best_score is not None else {}
                         progress.set_postfix(loss=f"{row['loss']:.4f}", tok_s=f"{row['tokens_per_s']:,.0f}",
                                              mfu=f"{row['mfu']:.0%}", **shown_best)
+                        report.log_step(self.step, row["loss"], selection)
                     sums.zero_()
                     last_time, last_tokens = time.perf_counter(), self.tokens
                 self._run_callbacks()
