@@ -1,6 +1,7 @@
 """Minari export: collected histories (episode ends recorded) load back through `minari.load_dataset` with
 the same episodes, steps and values; a file without episode ends is refused by name."""
 
+import gymnasium as gym
 import h5py
 import minari
 import numpy as np
@@ -13,7 +14,9 @@ from vintix.collect.export import export_minari
 from vintix.data import LearningHistory, LearningHistoryWriter, find_tasks, write_task_metadata
 from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED
 from vintix.data.validate import validate_history
-from vintix.errors import DatasetError
+from vintix.errors import DatasetError, VintixError
+from vintix.tasks import registry
+from vintix.tasks.custom import register_task
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +108,63 @@ def test_the_writer_refuses_an_unknown_episode_end(tmp_path):
     with LearningHistory(tmp_path / "h.h5") as history:
         rows, kinds, final = history.episode_ends()
     assert rows.tolist() == [1] and kinds.tolist() == [TRUNCATED] and final.tolist() == [[1.0, 1.0]]
+
+
+def test_an_existing_dataset_is_replaced_only_when_asked(pendulum_data, minari_home):
+    export_minari(pendulum_data, "vintix/pendulum/again-v0")
+    with pytest.raises(VintixError, match="--overwrite"):
+        export_minari(pendulum_data, "vintix/pendulum/again-v0")
+    result = CliRunner().invoke(app, ["data", "export-minari", str(pendulum_data), "--dataset-id",
+                                      "vintix/pendulum/again-v0", "--overwrite"])
+    assert result.exit_code == 0, result.output
+    assert "UserWarning" not in result.output  # Minari's advice for datasets published to its server, not printed
+    assert minari.load_dataset("vintix/pendulum/again-v0").total_steps == 800
+
+
+def make_bounded_point(**kwargs):
+    """An env factory of the user's: its spaces have bounds, which the export must keep."""
+    return BoundedPoint()
+
+
+class BoundedPoint(gym.Env):
+    observation_space = gym.spaces.Box(-2.0, 2.0, (1,), np.float32)
+    action_space = gym.spaces.Box(-0.5, 0.5, (1,), np.float32)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.x = np.zeros(1, np.float32)
+        return self.x.copy(), {}
+
+    def step(self, action):
+        self.x = np.clip(self.x + action, -2.0, 2.0).astype(np.float32)
+        return self.x.copy(), float(-abs(self.x[0] - 1.0)), False, False, {}
+
+
+class Toward:
+    def __init__(self, task):
+        pass
+
+    def act(self, observations, envs):
+        return np.clip(1.0 - observations[:, :1], -0.5, 0.5)
+
+
+def test_your_own_tasks_keep_their_env_or_its_bounds(tmp_path, minari_home):
+    """A task made from a Gymnasium id is recorded as that env (recover_environment makes it); one made by
+    your factory keeps its env's own observation and action bounds."""
+    register_task("mountain-car-mine", env_id="MountainCarContinuous-v0", obs_dim=2, act_dim=1, episode_length=50)
+    register_task("bounded-point", env_factory=f"{__name__}:make_bounded_point", obs_dim=1, act_dim=1,
+                  episode_length=20)
+    try:  # the test module is the user's package here: the collector's workers import it by name
+        collect([CollectionPlan("mountain-car-mine", histories=1, steps=100, demonstrator=f"{__name__}:Toward")],
+                tmp_path / "car")
+        collect([CollectionPlan("bounded-point", histories=1, steps=40, demonstrator=f"{__name__}:Toward")],
+                tmp_path / "point")
+        car = export_minari(tmp_path / "car", "mine/car-v0")
+        assert car.spec.env_spec.id == "MountainCarContinuous-v0"
+        assert car.recover_environment().spec.id == "MountainCarContinuous-v0"
+        point = export_minari(tmp_path / "point", "mine/point-v0")
+        assert point.spec.env_spec is None
+        assert point.spec.observation_space == BoundedPoint.observation_space
+        assert point.spec.action_space == BoundedPoint.action_space
+    finally:
+        registry._custom.clear()

@@ -662,13 +662,14 @@ def data_export_minari(
     author: Annotated[str | None, typer.Option(help="for Minari's metadata")] = None,
     author_email: Annotated[str | None, typer.Option(help="for Minari's metadata")] = None,
     code_permalink: Annotated[str | None, typer.Option(help="for Minari's metadata: the code behind the data")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="replace a local Minari dataset of this id")] = False,
 ) -> None:
     """Write one task's learning histories as a local Minari dataset (one Minari episode per episode)."""
     from vintix.collect.export import export_minari
 
     try:
         dataset = export_minari(root, dataset_id, task, author=author, author_email=author_email,
-                                code_permalink=code_permalink)
+                                code_permalink=code_permalink, overwrite=overwrite)
     except (VintixError, ValueError) as error:  # Minari raises ValueError for a bad or taken id
         raise _fail(error) from None
     console.print(f"wrote Minari dataset {dataset_id}: {dataset.total_episodes:,} episodes, {dataset.total_steps:,} "

@@ -7,10 +7,16 @@ published dataset cannot be exported, and the error says so. Each Minari episode
 it came from: the history file and its index, the episode's index in the history, and the noise level
 ε at the episode's first and last step (from the schedule the history records), so the learning
 histories' order and their rise from noise to expert play survive the export.
+
+The dataset records the task's Gymnasium environment where it has one (the package's tasks, and your own
+tasks registered with an ``env_id``), so ``dataset.recover_environment()`` makes it; otherwise (an
+``env_factory`` task, whose env is your code) it records the env's own observation and action spaces, bounds
+included, read off one env. Only a task this process does not know gets unbounded spaces.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 import warnings
 from pathlib import Path
@@ -24,17 +30,22 @@ from minari.data_collector import EpisodeBuffer
 from vintix.collect.noise import NoiseSchedule
 from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
 from vintix.errors import VintixError
-from vintix.tasks import action_bounds, find_task, gymnasium_id
+from vintix.tasks import action_box, find_task, gymnasium_id, make_env
 
 
 def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | None = None,
                   description: str | None = None, author: str | None = None, author_email: str | None = None,
-                  code_permalink: str | None = None) -> minari.MinariDataset:
+                  code_permalink: str | None = None, overwrite: bool = False) -> minari.MinariDataset:
     """Write the histories of one task of the dataset at `root` as the local Minari dataset `dataset_id`
     (under ``$MINARI_DATASETS_PATH``, default ``~/.minari/datasets``); `task` picks it where the dataset
-    holds several; `author`, `author_email` and `code_permalink` go into Minari's metadata. Returns the
-    dataset, loaded back by Minari."""
+    holds several; `author`, `author_email` and `code_permalink` go into Minari's metadata. A dataset of that
+    id already there is an error, or with `overwrite` is replaced (only once the new one's histories have been
+    read). Returns the dataset, loaded back by Minari."""
     data = _one_task(root, task)
+    existing = dataset_id in minari.list_local_datasets()
+    if existing and not overwrite:
+        raise VintixError(f"a local Minari dataset {dataset_id!r} exists already; choose another id, or replace it "
+                          "with --overwrite")
     if not data.history_paths:
         raise VintixError(f"{data.task_dir}: no histories to export")
     episodes, metadata = [], []
@@ -43,24 +54,55 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
             for episode, meta in _episodes(history):
                 episodes.append(episode)
                 metadata.append({"history": path.name, "history_index": index, **meta})
-    spec = find_task(data.task_name)
-    # A task of the package: Minari records its Gymnasium id, so `recover_environment` can make it. Others
-    # (your own task's env may need your code): the spaces alone.
-    env_id = gymnasium_id(spec) if spec is not None and spec.domain != "custom" else None
-    low, high = _action_bounds(data.task_name, data.act_dim)
+    env_spec = _env_spec(data.task_name)
+    observation_space, action_space = (None, None) if env_spec else _spaces(data)
+    if existing:
+        minari.delete_dataset(dataset_id)
     with warnings.catch_warnings():
-        # Meta-World's hidden goal is a Box with equal bounds by design (see `vintix.tasks.make`).
+        # Meta-World's hidden goal is a Box with equal bounds by design (see `vintix.tasks.make`); Minari's advice
+        # to name an author e-mail and a separate evaluation env is for datasets published to its server, and a
+        # task made by your factory has no env spec by design (its spaces are recorded instead).
         warnings.filterwarnings("ignore", message=".*maximum and minimum values are equal.*")
+        warnings.filterwarnings("ignore", message=".*is set to None.*", module="minari")
+        warnings.filterwarnings("ignore", message="env_spec is None.*", module="minari")
         dataset = minari.create_dataset_from_buffers(
-            dataset_id, episodes, env=env_id, author=author, author_email=author_email, code_permalink=code_permalink,
-            observation_space=None if env_id else gym.spaces.Box(-np.inf, np.inf, (data.obs_dim,), np.float32),
-            action_space=None if env_id else gym.spaces.Box(low, high, dtype=np.float32),
+            dataset_id, episodes, env=env_spec, eval_env=env_spec, author=author, author_email=author_email,
+            code_permalink=code_permalink, observation_space=observation_space, action_space=action_space,
             algorithm_name="vintix continuous noise distillation",
             description=description or f"Learning histories of {data.task_name} from {Path(root).name}: a "
                                        "demonstrator's actions mixed with uniform noise annealed from 1 to 0.",
         )
     dataset.storage.update_episode_metadata(metadata)
     return dataset
+
+
+def _env_spec(task: str) -> gym.envs.registration.EnvSpec | None:
+    """The Gymnasium spec `recover_environment` makes the task's env from: the package's tasks', and your own
+    tasks' made from a Gymnasium id (``module:EnvId`` imports the module first, as `gymnasium.make` does); None
+    for a task made by your factory or unknown here."""
+    spec = find_task(task)
+    if spec is None or spec.domain == "bidexhands" or (spec.domain == "custom" and spec.env_id is None):
+        return None
+    env_id = gymnasium_id(spec) if spec.domain != "custom" else str(spec.env_id)
+    module, _, name = env_id.rpartition(":")
+    if module:
+        importlib.import_module(module)
+    return gym.spec(name)
+
+
+def _spaces(data: TaskData) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+    """The task's observation and action spaces, read off one env where this process can make it, else
+    unbounded Boxes of the dataset's dimensions."""
+    spec = find_task(data.task_name)
+    if spec is None or spec.domain == "bidexhands":
+        unbounded = np.float32(np.inf)
+        return (gym.spaces.Box(-unbounded, unbounded, (data.obs_dim,), np.float32),
+                gym.spaces.Box(-unbounded, unbounded, (data.act_dim,), np.float32))
+    env = make_env(spec.name)
+    try:
+        return env.observation_space, action_box(env.action_space)  # type: ignore[return-value]
+    finally:
+        env.close()
 
 
 def _one_task(root: str | os.PathLike[str], task: str | None) -> TaskData:
@@ -73,13 +115,6 @@ def _one_task(root: str | os.PathLike[str], task: str | None) -> TaskData:
         raise VintixError(f"{root}: a Minari dataset holds one task; "
                           f"{'choose one with --task' if len(tasks) > 1 else f'no task {task!r} here'} ({names})")
     return tasks[0]
-
-
-def _action_bounds(task: str, act_dim: int) -> tuple[np.ndarray, np.ndarray]:
-    """The task's action bounds where its env can be made here, else unbounded."""
-    if find_task(task) is None:
-        return np.full(act_dim, -np.inf, np.float32), np.full(act_dim, np.inf, np.float32)
-    return action_bounds(task)
 
 
 def _episodes(history: LearningHistory) -> list[tuple[EpisodeBuffer, dict[str, Any]]]:
