@@ -7,9 +7,9 @@ from typer.testing import CliRunner
 
 from vintix.cli import app
 from vintix.collect import CollectionPlan, collect
-from vintix.collect.bench import CollectBenchmark, read_rates
+from vintix.collect.bench import CollectBenchmark, read_rates, write_rates
 from vintix.collect.estimate import TaskEstimate, collector_rate, estimate_plans, history_bytes, wall_seconds
-from vintix.collect.recipe import load_recipe
+from vintix.collect.recipe import load_recipe, shipped_recipes
 from vintix.errors import VintixError
 from vintix.tasks import get_task
 
@@ -50,6 +50,23 @@ def test_the_shipped_rates_cover_every_task_of_the_paper_recipe():
     estimates = estimate_plans(load_recipe("paper"), read_rates())
     assert len(estimates) == 72 and sum(e.steps for e in estimates) == 191_500_000
     assert all(e.steps_per_s > 0 for e in estimates)
+
+
+@pytest.mark.parametrize("recipe", shipped_recipes())
+def test_every_shipped_recipe_can_be_planned(recipe):
+    assert all(e.steps_per_s > 0 and e.bytes > 0 for e in estimate_plans(load_recipe(recipe), read_rates()))
+
+
+def test_a_measurement_is_added_to_a_rates_table_and_replaces_only_its_own_tasks_rows(tmp_path):
+    table = tmp_path / "rates.csv"
+    write_rates([CollectBenchmark("reach-v3", 5, 1000.0, 900.0), CollectBenchmark("push-v3", 5, 800.0, 700.0)],
+                table, "first")
+    write_rates([CollectBenchmark("reach-v3", 5, 1100.0, 950.0)], table, "second")
+    rates = read_rates(table)
+    assert rates["reach-v3"].collect_steps_per_s == 950.0 and rates["push-v3"].collect_steps_per_s == 700.0
+    table.write_text("task,speed\nreach-v3,fast\n")
+    with pytest.raises(VintixError, match="not a readable rates table"):
+        write_rates([CollectBenchmark("reach-v3", 5, 1100.0, 950.0)], table, "third")
 
 
 @pytest.mark.parametrize("content", [None, "task,speed\nreach-v3,fast\n", "task,envs_per_batch,raw_steps_per_s,"

@@ -871,8 +871,8 @@ def bench_collect(
     except VintixError as error:
         raise _fail(error) from None
     results = benchmark_collection([s.name for s in specs], steps, batch, repeats)
-    table = Table(title=f"collection speed in one process, {batch} histories per batch, median of {repeats} "
-                        f"(load average {os.getloadavg()[0]:.2f})")
+    load = f"load average {os.getloadavg()[0]:.2f}"  # a busy machine's rates are lower: say how busy
+    table = Table(title=f"collection speed in one process, {batch} histories per batch, median of {repeats} ({load})")
     for column in ("task", "raw env steps/s", "collector steps/s", "collector / raw"):
         table.add_column(column, justify="left" if column == "task" else "right")
     for r in results:
@@ -880,8 +880,8 @@ def bench_collect(
         table.add_row(r.task, f"{r.raw_steps_per_s:,.0f}", collected, "" if r.ratio is None else f"{r.ratio:.2f}")
     console.print(table)
     if out is not None:
-        command = "vintix bench collect " + " ".join(sys.argv[3:])
-        console.print(f"wrote {write_rates(results, out, command)}")
+        command = "vintix bench collect " + " ".join(sys.argv[3:]) + f" ({load})"
+        console.print(f"added {len(results)} rows to {write_rates(results, out, command)}")
 
 
 @bench_app.command("infer")

@@ -57,16 +57,23 @@ def rates_path() -> Path:
 
 
 def write_rates(results: list[CollectBenchmark], path: Path, command: str) -> Path:
-    """The benchmark's results as a rates table (CSV), written atomically."""
+    """Add the benchmark's results to the rates table at `path` (created if missing), atomically: a task
+    measured again gets its new row in place of the old one, the other tasks' rows stay as they were."""
+    rows: dict[str, dict[str, str]] = {}
+    if path.is_file():
+        read_rates(path)  # a file that is not a rates table is an error, never overwritten
+        with open(path, newline="") as file:
+            rows = {row["task"]: row for row in csv.DictReader(file)}
+    today = datetime.date.today().isoformat()
+    for r in results:
+        collected = "" if r.collect_steps_per_s is None else str(round(r.collect_steps_per_s))
+        rows[r.task] = {"task": r.task, "envs_per_batch": str(r.envs_per_batch),
+                        "raw_steps_per_s": str(round(r.raw_steps_per_s)), "collect_steps_per_s": collected,
+                        "measured_on": today, "command": command}
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=RATES_FIELDS, lineterminator="\n")
     writer.writeheader()
-    today = datetime.date.today().isoformat()
-    for r in results:
-        writer.writerow({"task": r.task, "envs_per_batch": r.envs_per_batch,
-                         "raw_steps_per_s": round(r.raw_steps_per_s),
-                         "collect_steps_per_s": "" if r.collect_steps_per_s is None else round(r.collect_steps_per_s),
-                         "measured_on": today, "command": command})
+    writer.writerows(rows.values())
     atomic_write_text(path, buffer.getvalue())
     return path
 
