@@ -234,3 +234,16 @@ def test_a_context_or_batch_beyond_the_machines_memory_is_refused_before_allocat
     agent = Agent.from_pretrained(tmp_path)  # the weights do not depend on the context's length
     with pytest.raises(OutOfMemoryError, match="a KV cache for 1 envs over a 1000000000-step context needs"):
         agent.reset(["reach-v3"])
+
+
+def test_threads_sets_torchs_cpu_threads_when_asked_and_leaves_them_otherwise():
+    before = torch.get_num_threads()
+    try:
+        Agent(tiny_model(), threads=2)
+        assert torch.get_num_threads() == 2
+        Agent(tiny_model())
+        assert torch.get_num_threads() == 2  # None: left as it is
+        with pytest.raises(AgentInputError, match="threads must be >= 1"):
+            Agent(tiny_model(), threads=0)
+    finally:
+        torch.set_num_threads(before)
