@@ -1,0 +1,52 @@
+"""docs/icrl-your-env.md, followed as a user would: its files written out as the page shows them, its shell
+commands run as they are written, and the model they make must read its rewards (success from shot 2 on with
+the true rewards fed back, not with zeros). A page that drifts from what works fails here."""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+PAGE = Path(__file__).parents[1] / "docs" / "icrl-your-env.md"
+
+
+def page_blocks() -> tuple[dict[str, str], str]:
+    """The page's files, by the name on their first line (``# hidden_target.py ...``), and its shell block."""
+    files, shell = {}, ""
+    for language, body in re.findall(r"```(\w+)\n(.*?)```", PAGE.read_text(), flags=re.S):
+        if language == "bash":
+            shell = body
+        else:
+            files[body.splitlines()[0].split()[1].rstrip(":")] = body
+    return files, shell
+
+
+def success_by_shot(folder: Path) -> dict[int, float]:
+    with (folder / "episodes.csv").open() as file:
+        rows = list(csv.DictReader(file))
+    return {shot: float(np.mean([float(r["success"]) for r in rows if int(r["shot"]) == shot]))
+            for shot in sorted({int(r["shot"]) for r in rows})}
+
+
+def test_following_the_page_gives_a_model_that_finds_the_hidden_target_from_its_rewards(tmp_path):
+    files, shell = page_blocks()
+    assert set(files) == {"hidden_target.py", "tasks.yaml", "recipe.yaml", "train.yaml"}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path),
+           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}  # this environment's vintix
+    run = subprocess.run(["bash", "-euo", "pipefail", "-c", shell], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=900)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    true, zero = success_by_shot(tmp_path / "results" / "true"), success_by_shot(tmp_path / "results" / "zero")
+    later = [2, 3, 4]
+    assert true[1] <= 0.3  # the probe
+    assert np.mean([true[s] for s in later]) >= 0.8
+    assert np.mean([true[s] - zero[s] for s in later]) >= 0.5  # the rewards, not the context's length, do it
+    assert (tmp_path / "report" / "report.md").is_file()
