@@ -223,6 +223,19 @@ def test_in_context_score_is_a_training_callback_that_restores_train_mode():
     assert model.training and np.isfinite(score) and -1.0 < score < 1.0
 
 
+def test_the_console_names_tasks_whole_says_which_shots_it_shows_and_compares_like_with_like(tmp_path):
+    """Full task names, the shots a per-shot table skips said, the paper's Vintix scores only beside scores
+    normalized by the paper's table, and no hidden-goal protocol recorded for tasks that hide nothing."""
+    save_pretrained(tiny_model(("InvertedPendulum-v5", "industrial-benchmark-30-v1")), tmp_path / "ckpt")
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks",
+                                      "industrial-benchmark-30-v1", "--shots", "13", "--seeds", "1",
+                                      "--reference", "ours", "--out", str(tmp_path / "results")])
+    assert result.exit_code == 0, result.output
+    assert "industrial-benchmark-30-v1" in result.output and "paper's Vintix" not in result.output
+    assert f"at shots {', '.join(map(str, shots_to_show(13)))} of 13" in result.output
+    assert "goal_protocol" not in json.loads((tmp_path / "results" / "run.json").read_text())
+
+
 def test_the_per_shot_table_shows_every_shot_or_a_spread_that_keeps_the_first_and_last():
     assert shots_to_show(10) == list(range(1, 11))
     many = shots_to_show(100)

@@ -1000,20 +1000,26 @@ def eval_command(
     with_success = any(s["success_first"] is not None for s in summary)
     table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task"
                         + ("; success rate where the task has a success flag" if with_success else ""))
-    columns = ["task", "variation", "shot 1", f"shot {shots}", plateau, "from shot", "paper's Vintix (paper table)"]
-    for column in columns + (["success shot 1", f"success {plateau}"] if with_success else []):
-        table.add_column(column, justify="left" if column in ("task", "variation") else "right")
+    # The paper's Vintix scores are normalized by the paper's table: beside scores normalized the same way only.
+    with_paper = reference == "paper"
+    columns = ["variation", "shot 1", f"shot {shots}", plateau, "from shot"] + (
+        ["paper's Vintix"] if with_paper else []) + (["success shot 1", f"success {plateau}"] if with_success else [])
+    # A task's name is never cut ("industrial-benchmark-…"): the other columns wrap instead.
+    table.add_column("task", no_wrap=True, min_width=max(len(s["task"]) for s in summary))
+    for column in columns:
+        table.add_column(column, justify="left" if column == "variation" else "right")
     for s in summary:
-        paper = "—" if s["paper_vintix"] is None else f"{s['paper_vintix']:.2f}"
         cells = [s["task"], s["variation"] or "—", f"{s['first']:.2f}", f"{s['last']:.2f}", f"{s['plateau']:.2f}",
-                 str(s["plateau_from"]), paper]
+                 str(s["plateau_from"])]
+        if with_paper:
+            cells.append("—" if s["paper_vintix"] is None else f"{s['paper_vintix']:.2f}")
         if with_success:
             cells += [_rate(s["success_first"]), _rate(s["success_plateau"])]
         table.add_row(*cells)
     console.print(table)
     shown = shots_to_show(shots)
-    per_shot = Table(
-        title=f"in context: mean normalized score ({reference} reference) at each shot, over tasks and runs")
+    which = "at each shot" if len(shown) == shots else f"at shots {', '.join(map(str, shown))} of {shots}"
+    per_shot = Table(title=f"in context: mean normalized score ({reference} reference) {which}, over tasks and runs")
     per_shot.add_column("domain")
     for shot in shown:
         per_shot.add_column(f"shot {shot}", justify="right")

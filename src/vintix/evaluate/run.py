@@ -39,6 +39,7 @@ from vintix.evaluate.summary import best_k_plateau
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, action_box, find_task, get_task, make_env, resolve_tasks
 from vintix.tasks.custom import custom_specs
+from vintix.tasks.registry import has_hidden_goal
 from vintix.tasks.scores import Reference, missing_reference_note, reference
 from vintix.train.config import SELECT_METRICS, ConfigError, TrainConfig
 from vintix.train.trainer import Scorer, Selection
@@ -332,12 +333,12 @@ def evaluate(
             "checkpoint": checkpoint,
             "model_config": asdict(model.config),
             "config": asdict(config),
-            "goal_protocol": GOAL_PROTOCOL,
             "references": {table: {task: None if ref is None else asdict(ref) for task, ref in by_task.items()}
                            for table, by_task in refs.items()},
             "seconds": round(time.time() - started, 1),
             "torch": torch.__version__,
-        } | ({"custom_tasks": custom} if (custom := custom_specs([s.name for s in specs])) else {}))
+        } | ({"goal_protocol": GOAL_PROTOCOL} if any(map(has_hidden_goal, specs)) else {})
+          | ({"custom_tasks": custom} if (custom := custom_specs([s.name for s in specs])) else {}))
     return rows, notes + missing
 
 

@@ -390,7 +390,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
                      f"{config.get('seeds', '?')} | {variation} | {prompt} | {r.reward_input} | {len(r.scores)} |")
     goal = {str(protocol) for r in results if (protocol := r.run.get("goal_protocol")) is not None}
     if goal:
-        lines.append(f"\nMeta-World goal protocol: {'; '.join(sorted(goal))}.\n")
+        lines.append(f"\nHidden-goal protocol: {'; '.join(sorted(goal))}.\n")
 
     per_label = ["shot 1", "converged"] + (["success shot 1", "success converged"] if with_success else [])
     card = model_card_scores() if model_card else {}
@@ -427,9 +427,10 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
     # model reaches without reading a single reward.
     goal_blind = read_goal_blind()
     success_columns = " success shot 1 | success converged | goal-blind success |" if with_success else ""
-    lines += ["\n## Per task\n", f"| task ({table}-normalized) | label | runs | shot 1 | converged | from shot | "
-              "paper's Vintix |" + (" model card |" if model_card else "") + success_columns,
-              "|---|---|---|---|---|---|---|" + "---|" * (model_card + 3 * with_success)]
+    with_paper = table == "paper"  # the paper's Vintix scores are paper-normalized: beside such scores only
+    lines += ["\n## Per task\n", f"| task ({table}-normalized) | label | runs | shot 1 | converged | from shot |"
+              + (" paper's Vintix |" if with_paper else "") + (" model card |" if model_card else "") + success_columns,
+              "|---|---|---|---|---|---|" + "---|" * (with_paper + model_card + 3 * with_success)]
     bars = []
     for variant in sorted({v for r in results for v in r.scores}):
         curves = {}
@@ -442,8 +443,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
             published = get_task(r.tasks[variant]).paper_vintix_normalized
             paper = published.mean if table == "paper" and "[" not in variant and published is not None else None
             bars.append((variant, r.label, float(scores[:, 0].mean()), value, paper))
-            cells = [variant, r.label, str(len(scores)), _ci(*curves[r.label][0][0]), f"{value:.2f}", str(start),
-                     "—" if paper is None else f"{paper:.2f}"]
+            cells = [variant, r.label, str(len(scores)), _ci(*curves[r.label][0][0]), f"{value:.2f}", str(start)]
+            if with_paper:
+                cells.append("—" if paper is None else f"{paper:.2f}")
             if model_card:
                 published_card = card.get(r.tasks[variant]) if "[" not in variant else None
                 cells.append("—" if published_card is None else f"{published_card:.2f}")

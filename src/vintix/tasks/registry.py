@@ -123,6 +123,12 @@ HIDDEN_GOAL_MUJOCO_TASKS = ("Reacher-hidden-v5",)
 """MuJoCo tasks of the package's own whose goal only the rewards reveal (not the paper's; no published scores)."""
 
 
+def has_hidden_goal(spec: TaskSpec) -> bool:
+    """Whether `spec`'s env keeps a goal it never shows, drawn from its seed (Meta-World, the toy,
+    Reacher-hidden-v5): the tasks an evaluation's goal protocol is about."""
+    return spec.domain in ("metaworld", "toy") or spec.name in HIDDEN_GOAL_MUJOCO_TASKS
+
+
 def _hidden_goal_mujoco_tasks() -> list[TaskSpec]:
     # Reacher-v5's episode length and reward scale; its own encoder group, since it observes 6 of Reacher's 10
     # entries (`vintix.tasks.reacher_hidden`).
