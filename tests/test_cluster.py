@@ -4,8 +4,10 @@ same commands give in local processes; without Ray installed, `--ray` says how t
 from __future__ import annotations
 
 import re
+import shutil
 import socket
 import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -19,11 +21,15 @@ runner = CliRunner()
 
 @pytest.fixture(scope="module")
 def local_ray():
-    """One local Ray instance for the module (starting one takes seconds); `--ray auto` joins it."""
+    """One local Ray instance for the module (starting one takes seconds); `--ray auto` joins it. Its session
+    folder sits under a short path of its own, not TMPDIR: Ray's sockets live there, and a Unix socket's path
+    may not exceed 107 bytes, which a long TMPDIR breaks."""
     ray = pytest.importorskip("ray")
-    ray.init(num_cpus=2, include_dashboard=False)
+    folder = tempfile.mkdtemp(prefix="vx-ray-", dir="/tmp")
+    ray.init(num_cpus=2, include_dashboard=False, _temp_dir=folder)
     yield
     ray.shutdown()
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 def test_collection_on_ray_equals_the_local_collection(tmp_path, local_ray):
