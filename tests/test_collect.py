@@ -301,3 +301,23 @@ def test_a_disk_that_fills_up_mid_collection_ends_it_with_the_fix_and_no_unfinis
     assert not list(out.rglob("*.partial"))
     ballast.unlink()
     assert_rerun_gives_the_uninterrupted_bytes(args, out, tmp_path / "straight", histories=2)
+
+
+def test_the_summary_has_one_row_per_task_and_leaves_out_episodes_the_historys_end_cut_short(tmp_path):
+    """Reacher's episodes run 50 steps: a 120-step history holds 2 complete ones and 20 steps of a third,
+    whose return (20 steps' worth) would pull the last 10 % of the history toward zero."""
+    from typer.testing import CliRunner
+
+    from vintix.cli import app
+
+    result = CliRunner().invoke(app, ["collect", "--task", "Reacher-v5", "--histories", "3", "--steps", "120",
+                                      "--noise-free-fraction", "1.0", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    [row] = [line for line in result.output.splitlines() if line.startswith("│ Reacher-v5")]
+    cells = [c.strip() for c in row.strip("│").split("│")]
+    assert cells[1:4] == ["3", "360", "6"] and "history-0000" not in result.output
+    complete = []
+    for path in sorted((tmp_path / "mujoco" / "Reacher-v5").glob("*.h5")):
+        with LearningHistory(path) as history:
+            complete.append(history.episode_returns()[-2])  # the last complete episode
+    assert float(cells[5]) == pytest.approx(np.mean(complete), abs=0.05)

@@ -25,7 +25,7 @@ from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
-    from vintix.collect import CollectionPlan
+    from vintix.collect import CollectionPlan, HistorySummary
 
 
 class _Commands(TyperGroup):
@@ -266,17 +266,28 @@ def collect(
     except (VintixError, ValueError, FileNotFoundError, NotImplementedError) as error:
         raise _fail(error) from None
     seconds = time.perf_counter() - start
-    table = Table(title="learning histories: mean episode return, first vs last 10% of episodes")
-    for column in ("history", "steps", "episodes", "first 10%", "last 10%"):
-        table.add_column(column, justify="left" if column == "history" else "right")
-    for s in summaries:
-        table.add_row(str(s.path.relative_to(out)), f"{s.steps:,}", str(len(s.episode_returns)),
-                      f"{s.mean_return(first=True):.1f}", f"{s.mean_return(first=False):.1f}")
-    console.print(table)
+    console.print(_collection_summary(summaries))
     new = sum(s.steps for s in summaries if s.collected_now)
     speed = f", {new / seconds:,.0f} steps/s" if new else ""
     console.print(f"wrote {len(summaries)} histories ({sum(s.steps for s in summaries):,} steps) under {out}; "
                   f"this run collected {new:,} steps in {seconds:.1f} s{speed}")
+
+
+def _collection_summary(summaries: list[HistorySummary]) -> Table:
+    """Per task: its histories, and the mean return of each history's first and last 10 % of complete episodes
+    (an episode the history's end cut short would pull its last 10 % down), averaged over the histories."""
+    import numpy as np
+
+    table = Table(title="learning histories per task: mean return of the first vs the last 10 % of each history's "
+                        "complete episodes, over its histories")
+    for column in ("task", "histories", "steps", "complete episodes", "first 10%", "last 10%"):
+        table.add_column(column, justify="left" if column == "task" else "right", no_wrap=column == "task")
+    for task in dict.fromkeys(s.task for s in summaries):
+        mine = [s for s in summaries if s.task == task]
+        first, last = (np.nanmean([s.mean_return(first=f) for s in mine]) for f in (True, False))
+        table.add_row(task, f"{len(mine):,}", f"{sum(s.steps for s in mine):,}",
+                      f"{sum(len(s.episode_returns) for s in mine):,}", f"{first:.1f}", f"{last:.1f}")
+    return table
 
 
 def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file: Path | None) -> None:

@@ -144,13 +144,17 @@ class HistorySummary:
     """What a finished history looks like, for the end-of-run report."""
 
     path: Path
+    task: str
     steps: int
     episode_returns: np.ndarray
+    """the return of each complete episode: an episode the history's end cut short is left out"""
     collected_now: bool
     """False when the file was already there from an earlier (interrupted) run."""
 
     def mean_return(self, first: bool, fraction: float = 0.1) -> float:
-        """Mean return of the first (or last) `fraction` of the history's episodes."""
+        """Mean return of the first (or last) `fraction` of the history's complete episodes (NaN: none)."""
+        if not len(self.episode_returns):
+            return float("nan")
         n = max(1, int(len(self.episode_returns) * fraction))
         chosen = self.episode_returns[:n] if first else self.episode_returns[-n:]
         return float(np.mean(chosen))
@@ -485,4 +489,10 @@ def _collect_on_ray(jobs: list[tuple[CollectionPlan, list[int], Path, Demonstrat
 
 def summarize_history(path: Path, collected_now: bool) -> HistorySummary:
     with LearningHistory(path) as history:
-        return HistorySummary(path, history.num_steps, history.episode_returns(), collected_now)
+        returns, ends = history.episode_returns(), history.episode_ends()
+        # The last episode is cut short where the history's end came first (recorded as such; a file that
+        # records no episode ends: unless its last step is an episode's last, which it cannot tell, so it goes).
+        cut = ends is None or ends[1][-1] == HISTORY_END
+        complete = returns[:-1] if cut and len(returns) > 1 else returns
+        return HistorySummary(path, str(history.attrs.get("task", path.parent.name)), history.num_steps, complete,
+                              collected_now)
