@@ -209,7 +209,9 @@ class _GoalPosterior:
         self.steps = 0
         self.episode += 1
         self.fumbling = False
-        if self.episode >= 2 and self.rng.random() < self.settings.lapse_probability:
+        # No draw without lapses: histories collected before lapses existed keep their random stream, and bytes.
+        lapses = self.settings.lapse_probability > 0 and self.episode >= 2
+        if lapses and self.rng.random() < self.settings.lapse_probability:
             self.fumbling = can_fumble and bool(self.rng.random() < 0.5)
             if not self.fumbling:
                 self.guess = self.prior_draws[self.rng.integers(len(self.prior_draws))]
