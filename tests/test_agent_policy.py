@@ -118,3 +118,22 @@ def test_predict_shapes_and_errors():
         agent.predict(np.zeros(39))
     with pytest.raises(AgentInputError, match="autoreset"):
         agent.predict([np.zeros(39), np.zeros(4)], autoreset="eventually")
+
+
+def test_the_agent_never_feeds_a_reward_it_was_not_given_nor_spreads_one_over_several_envs():
+    """A missing reward mid-episode would be the zero-reward ablation, run unasked; one reward for two envs,
+    or flags of the wrong count, would silently be spread or cut."""
+    agent = Agent(tiny_model())
+    agent.reset(["reach-v3", "reach-v3"])  # a vector env of one task, as predict takes
+    obs = np.zeros((2, 39))
+    agent.predict(obs)  # the first step starts every episode: no reward to read
+    with pytest.raises(AgentInputError, match=r"reward is None, but env\(s\) \[0, 1\] are mid-episode"):
+        agent.predict(obs, None, [False, False])
+    with pytest.raises(AgentInputError, match=r"reward is None, but env\(s\) \[1\]"):
+        agent.predict(obs, None, [True, False])
+    agent.predict(obs, None, [True, True])  # every env starts an episode: nothing to read
+    with pytest.raises(AgentInputError, match="reward has 1 value"):
+        agent.predict(obs, 0.5, [False, False])
+    with pytest.raises(AgentInputError, match="episode_start has 3 value"):
+        agent.predict(obs, [0.5, 0.5], [False, False, True])
+    assert agent.steps == 2  # no refused call fed a token

@@ -130,6 +130,16 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
     return AgentTask(task, group, mean, std, reward_scale, source, low, high, layout)
 
 
+def _one_per_env(what: str, values: np.ndarray, n: int) -> np.ndarray:
+    """`values` as one entry per env of `n`; any other count (one value for several envs included: it would
+    be spread over all of them) is an AgentInputError naming `what`."""
+    flat = values.reshape(-1)
+    if len(flat) != n:
+        raise AgentInputError(f"{what} has {len(flat)} value(s) for {n} env(s); give one per env, in the order of "
+                              "agent.reset's tasks")
+    return flat
+
+
 def _numbers(what: str, values: object, dtype: type) -> np.ndarray:
     """`values` as an array of `dtype`; text (even "1.5"), complex numbers, None or ragged lists are an
     AgentInputError naming `what`, and so are flags other than 0/1 where `dtype` is bool."""
@@ -388,13 +398,11 @@ class Agent:
         if self.cache is None:
             raise AgentStateError("call agent.reset(tasks) before agent.act(...)")
         batch = len(self.tasks)
-        starts = _numbers("episode_starts", episode_starts, bool).reshape(-1)
-        rewards = np.where(starts, 0.0, _numbers("prev_rewards", prev_rewards, np.float64).reshape(-1))
-        if len(obs) != batch or starts.shape != (batch,) or rewards.shape != (batch,):
-            raise AgentInputError(
-                f"the agent was reset with {batch} envs; got {len(obs)} observations, {rewards.shape[0]} rewards, "
-                f"{starts.shape[0]} episode starts"
-            )
+        if len(obs) != batch:
+            raise AgentInputError(f"the agent was reset with {batch} envs; got {len(obs)} observations")
+        starts = _one_per_env("episode_starts", _numbers("episode_starts", episode_starts, bool), batch)
+        rewards = np.where(starts, 0.0, _one_per_env("prev_rewards", _numbers("prev_rewards", prev_rewards,
+                                                                               np.float64), batch))
         observations = [_numbers(f"observation of env {i}", o, np.float32) for i, o in enumerate(obs)]
         for i, task in enumerate(self.tasks):
             self._check("observation", i, observations[i], (task.env_obs_dim(self.model),))
@@ -442,7 +450,8 @@ class Agent:
         One env (``reset`` with one task): `observation` ``[obs_dim]``, `reward` and `episode_start`
         scalars, the action ``[act_dim]``. Several (a Gymnasium vector env): ``[n_envs, obs_dim]`` in, ``[n_envs,
         act_dim]`` out. Observations and rewards are the env's raw ones; the model normalizes them.
-        `reward`: what the env returned for the previous action (ignored at an episode start).
+        `reward`: what the env returned for the previous action, one per env (ignored at an episode start, where
+        it may be None; anywhere else None is an error, never a silent zero).
         `episode_start`: this observation begins an episode, i.e. the previous step ended one (SB3's
         convention); default: True on the first call after `reset`, False after. A new episode is a
         flag, never a `reset`: the context (what the agent has learned in context) carries over.
@@ -468,8 +477,9 @@ class Agent:
                                   f"{np.shape(observation)} (one env: [obs_dim]; several: [n_envs, obs_dim])")
         first = self.cache.length == 0
         default_start = np.full(n, first)
-        starts = default_start if episode_start is None else _numbers("episode_start", episode_start, bool).reshape(-1)
-        rewards = np.zeros(n) if reward is None else _numbers("reward", reward, np.float64).reshape(-1)
+        starts = default_start if episode_start is None else _one_per_env(
+            "episode_start", _numbers("episode_start", episode_start, bool), n)
+        rewards = np.zeros(n) if reward is None else _one_per_env("reward", _numbers("reward", reward, np.float64), n)
         skip = None
         if mode == "next-step" and not first:
             # An env flagged now ended its episode on the last step: this observation is that episode's last,
@@ -477,6 +487,13 @@ class Agent:
             skip = starts & ~self._awaiting_start
             starts = self._awaiting_start.copy()
             self._awaiting_start = skip
+        # No reward where one is read would feed zeros: the zero-reward ablation, which must never happen unasked.
+        reading = ~starts if skip is None else ~(starts | skip)
+        if reward is None and reading.any():
+            raise AgentInputError(
+                f"reward is None, but env(s) {np.flatnonzero(reading).tolist()[:10]} are mid-episode, where the model "
+                "reads the reward the env returned for the previous action: pass it (None is for episode starts; "
+                "to feed zeros on purpose, pass 0.0)")
         if skip is not None and skip.all():
             actions = self._previous_actions()
         else:
