@@ -30,7 +30,7 @@ from minari.data_collector import EpisodeBuffer
 from vintix.collect.noise import NoiseSchedule
 from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
 from vintix.errors import VintixError
-from vintix.tasks import action_box, find_task, gymnasium_id, make_env
+from vintix.tasks import TaskSpec, action_box, find_task, gymnasium_id, make_env
 
 
 def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | None = None,
@@ -54,8 +54,9 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
             for episode, meta in _episodes(history):
                 episodes.append(episode)
                 metadata.append({"history": path.name, "history_index": index, **meta})
-    env_spec = _env_spec(data.task_name)
-    observation_space, action_space = (None, None) if env_spec else _spaces(data)
+    spec = find_task(data.task_name)
+    env_spec = _env_spec(spec)
+    observation_space, action_space = (None, None) if env_spec else _spaces(spec, data)
     if existing:
         minari.delete_dataset(dataset_id)
     with warnings.catch_warnings():
@@ -76,11 +77,10 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
     return dataset
 
 
-def _env_spec(task: str) -> gym.envs.registration.EnvSpec | None:
+def _env_spec(spec: TaskSpec | None) -> gym.envs.registration.EnvSpec | None:
     """The Gymnasium spec `recover_environment` makes the task's env from: the package's tasks', and your own
     tasks' made from a Gymnasium id (``module:EnvId`` imports the module first, as `gymnasium.make` does); None
-    for a task made by your factory or unknown here."""
-    spec = find_task(task)
+    for a task made by your factory or unknown here (`spec` None)."""
     if spec is None or spec.domain == "bidexhands" or (spec.domain == "custom" and spec.env_id is None):
         return None
     env_id = gymnasium_id(spec) if spec.domain != "custom" else str(spec.env_id)
@@ -90,10 +90,9 @@ def _env_spec(task: str) -> gym.envs.registration.EnvSpec | None:
     return gym.spec(name)
 
 
-def _spaces(data: TaskData) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+def _spaces(spec: TaskSpec | None, data: TaskData) -> tuple[gym.spaces.Box, gym.spaces.Box]:
     """The task's observation and action spaces, read off one env where this process can make it, else
     unbounded Boxes of the dataset's dimensions."""
-    spec = find_task(data.task_name)
     if spec is None or spec.domain == "bidexhands":
         unbounded = np.float32(np.inf)
         return (gym.spaces.Box(-unbounded, unbounded, (data.obs_dim,), np.float32),
