@@ -9,14 +9,15 @@ set -euo pipefail
 W=${1:-cpu-suite}
 V=${VINTIX:-vintix}
 TRAIN_TASKS=reach-v3,push-v3,button-press-v3,drawer-close-v3,door-open-v3,window-open-v3,industrial-benchmark-10-v1,industrial-benchmark-30-v1,industrial-benchmark-50-v1,industrial-benchmark-70-v1,Reacher-v5,Pusher-v5
-TRAIN=(--config tiny --set max_steps=1500 --set warmup_steps=50 --set select_every=150 --set checkpoint_every=150)
+TRAIN=(--config tiny --set max_steps=1500 --set warmup_steps=50 --set select_every=150 --set checkpoint_every=150
+       --set 'model_overrides={last_reward: false}')  # the paper's token layout, as the shipped model was trained
 EVAL=(--shots 20 --first-seed 100 --reference ours)
 
 $V collect --recipe cpu-suite --out "$W/data" --workers 2
 $V collect --recipe cpu-suite-expert --out "$W/data-expert" --workers 2
 $V train "${TRAIN[@]}" --data "$W/data" --out "$W/runs/ad"
 $V train "${TRAIN[@]}" --data "$W/data-expert" --out "$W/runs/ed" --set expert_distillation=true
-$V train "${TRAIN[@]}" --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={mask_reward: true}'
+$V train "${TRAIN[@]}" --data "$W/data" --out "$W/runs/nr" --set 'model_overrides={mask_reward: true, last_reward: false}'
 
 # The same unseen seeds for every model: train tasks for all three (the ablation comparison);
 # held-out tasks and physics variations for the shipped AD model.

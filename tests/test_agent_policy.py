@@ -56,16 +56,18 @@ def vector_loop(agent, task, seeds, shots, mode):
     return returns, starts  # the episodes' returns per env, and which envs ended on the last step
 
 
-def test_a_plain_gymnasium_loop_plays_exactly_what_eval_plays():
-    model = tiny_model()
+@pytest.mark.parametrize("last_reward", [False, True])
+def test_a_plain_gymnasium_loop_plays_exactly_what_eval_plays(last_reward):
+    model = tiny_model(last_reward=last_reward)
     for task, seed in (("reach-v3", 7), ("InvertedPendulum-v5", 3)):
         expected = eval_returns(model, task, [seed], 4)
         assert single_env_loop(Agent(model), task, seed, 4) == [expected[(seed, shot)] for shot in range(1, 5)]
 
 
+@pytest.mark.parametrize("last_reward", [False, True])
 @pytest.mark.parametrize("mode", [gym.vector.AutoresetMode.SAME_STEP, gym.vector.AutoresetMode.NEXT_STEP])
-def test_a_vector_env_loop_plays_exactly_what_eval_plays(mode):
-    model, seeds = tiny_model(), [11, 12, 13]
+def test_a_vector_env_loop_plays_exactly_what_eval_plays(mode, last_reward):
+    model, seeds = tiny_model(last_reward=last_reward), [11, 12, 13]
     expected = eval_returns(model, "reach-v3", seeds, 3)
     returns, _ = vector_loop(Agent(model), "reach-v3", seeds, 3, mode)
     assert returns == [[expected[(s, shot)] for shot in (1, 2, 3)] for s in seeds]
@@ -118,6 +120,29 @@ def test_predict_shapes_and_errors():
         agent.predict(np.zeros(39))
     with pytest.raises(AgentInputError, match="autoreset"):
         agent.predict([np.zeros(39), np.zeros(4)], autoreset="eventually")
+
+
+@pytest.mark.parametrize("last_reward", [False, True])
+def test_an_episodes_last_reward_reaches_only_a_last_reward_model(last_reward):
+    """The reward passed with episode_start=True is the previous episode's last: the paper's layout never sees
+    it (a success bonus paid at the end would be invisible), a last_reward model does."""
+    def second_episode_action(last: float) -> np.ndarray:
+        agent = Agent(tiny_model(last_reward=last_reward))
+        agent.reset(["InvertedPendulum-v5"])
+        for step in range(5):
+            agent.predict(np.full(4, 0.1 * step), 1.0, step == 0)
+        return agent.predict(np.zeros(4), last, True)[0]
+
+    plus, minus = second_episode_action(1000.0), second_episode_action(-1000.0)
+    assert np.array_equal(plus, minus) != last_reward
+    agent = Agent(tiny_model(last_reward=last_reward))
+    agent.reset(["InvertedPendulum-v5"])
+    agent.predict(np.zeros(4))
+    if last_reward:  # the start reads a reward: None there would feed a silent zero
+        with pytest.raises(AgentInputError, match="previous episode's last reward"):
+            agent.predict(np.zeros(4), None, True)
+    else:
+        agent.predict(np.zeros(4), None, True)
 
 
 def test_the_agent_never_feeds_a_reward_it_was_not_given_nor_spreads_one_over_several_envs():

@@ -149,6 +149,23 @@ def test_previous_action_and_reward_are_ignored_at_episode_starts():
     assert not torch.allclose(model(**changed), out, atol=1e-4)
 
 
+def test_last_reward_reaches_an_episodes_first_token_and_every_parameter_learns():
+    model = make_model(last_reward=True).train()
+    batch = make_batch("A", "a0", model)
+    out = model(**batch)
+    starts = batch["step_num"] == 0
+    changed = {**batch, "prev_action": batch["prev_action"].clone(), "prev_reward": batch["prev_reward"].clone()}
+    changed["prev_action"][starts] = 5.0  # an episode start still has no previous action
+    assert torch.equal(model(**changed), out)
+    changed["prev_reward"][starts] = -7.0  # ... but the previous episode's last reward
+    assert not torch.allclose(model(**changed)[starts], out[starts], atol=1e-4)
+    # No reward padding is left unused: a parameter without a gradient would make DDP fail.
+    assert all(enc.rew_pad is None for enc in model.encoders.values())
+    out.square().mean().backward()
+    unused = [n for n, p in model.named_parameters() if p.grad is None and ".B." not in n]  # the batch is group A's
+    assert not unused
+
+
 def test_observations_are_normalized_per_task_with_a_std_floor():
     model = make_model(std_floor=0.25)
     a1 = model.task_index("a1")

@@ -19,9 +19,10 @@ from vintix.agent import Agent
 from vintix.agent.pretrained import resolve_checkpoint
 from vintix.cli import app
 from vintix.errors import UnknownTaskError
-from vintix.model import load_pretrained
+from vintix.model import load_pretrained, preset
 from vintix.model.official import (
     OfficialFormatError,
+    config_to_official,
     export_official,
     import_official,
     state_dict_from_official,
@@ -460,6 +461,9 @@ def test_from_pretrained_imports_a_raw_snapshot_into_the_user_cache(release, tmp
 def test_export_refuses_a_model_the_release_code_cannot_express(tmp_path):
     with pytest.raises(OfficialFormatError, match="shared_padding=False"):
         export_official(resolve_checkpoint("point-goal"), tmp_path / "out")
+    # The release's token layout drops an episode's last reward: a model that reads it has no place there.
+    with pytest.raises(OfficialFormatError, match="last_reward=True"):
+        config_to_official(preset("paper", last_reward=True))
 
 
 def test_cli_imports_and_exports(release, tmp_path):

@@ -77,6 +77,9 @@ def test_window_is_consecutive_rows_of_one_history_with_true_previous_action(dat
         inside = step != 0
         assert np.array_equal(w["prev_action"][inside, 0], rows[inside] - 1)
         assert np.allclose(w["prev_reward"][inside], (rows[inside] - 1) / 10)
+        # An episode start's reward is the previous episode's last (ModelConfig.last_reward); the history's
+        # first row has none.
+        assert np.allclose(w["prev_reward"][~inside], np.maximum(rows[~inside] - 1, 0) / 10)
         mid_episode_starts += bool(step[0] != 0)
     assert mid_episode_starts > 100, "random offsets start most windows mid-episode"
 
@@ -101,6 +104,8 @@ def test_sparsity_keeps_every_kth_episode(dataset, tmp_path):
         for j in jumps:
             skipped = rows[j + 1] - rows[j] - 1
             assert skipped in (2 * 20, 2 * 15), "two whole episodes skipped between kept ones"
+            # A kept episode's start carries the last reward of the episode before it in the window.
+            assert np.isclose(w["prev_reward"][j + 1], rows[j] / 10)
 
 
 def test_stochastic_sparsity_draws_each_k_up_to_the_maximum(dataset, tmp_path):

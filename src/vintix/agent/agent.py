@@ -246,6 +246,7 @@ class Agent:
         self._prev_action: dict[str, torch.Tensor] = {}
         self._busy = threading.Lock()
         self._awaiting_start = np.zeros(0, dtype=bool)
+        self._last_rewards = np.zeros(0)
         """per env, sat out the last step under next-step autoreset: its next observation starts an episode"""
 
     @classmethod
@@ -299,6 +300,7 @@ class Agent:
         }
         self.cache = KVCache.for_model(self.model, len(self.tasks))
         self._awaiting_start = np.zeros(len(self.tasks), dtype=bool)
+        self._last_rewards = np.zeros(len(self.tasks))  # next-step autoreset: the reward that came with the flag
         self._generator.manual_seed(self.seed)
 
     def _regroup(self) -> None:
@@ -326,6 +328,7 @@ class Agent:
             previous.update(zip(batch.envs.tolist(), self._prev_action[group], strict=True))
         self.tasks = [self.tasks[i] for i in envs]
         self._awaiting_start = self._awaiting_start[envs]
+        self._last_rewards = self._last_rewards[envs]
         self._regroup()
         self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()])
                              for g, b in self._groups.items()}
@@ -383,9 +386,10 @@ class Agent:
         """One step of every env: actions (clipped to each env's bounds), one array per env.
 
         ``obs[i]`` is env ``i``'s raw observation and ``prev_rewards[i]`` the raw reward it returned for the
-        agent's previous action, ignored where ``episode_starts[i]`` (the first observation of an episode);
-        the model normalizes both (per-task observation statistics, per-task reward scale). A NaN/inf
-        action from the model raises `AgentOutputError`: every action returned is finite and within bounds.
+        agent's previous action; where ``episode_starts[i]`` (the first observation of an episode) that is the
+        previous episode's last reward, which only a `ModelConfig.last_reward` model reads. The model normalizes
+        both (per-task observation statistics, per-task reward scale). A NaN/inf action from the model raises
+        `AgentOutputError`: every action returned is finite and within bounds.
         """
         return self._act(obs, prev_rewards, episode_starts)
 
@@ -401,8 +405,11 @@ class Agent:
         if len(obs) != batch:
             raise AgentInputError(f"the agent was reset with {batch} envs; got {len(obs)} observations")
         starts = _one_per_env("episode_starts", _numbers("episode_starts", episode_starts, bool), batch)
-        rewards = np.where(starts, 0.0, _one_per_env("prev_rewards", _numbers("prev_rewards", prev_rewards,
-                                                                               np.float64), batch))
+        rewards = _one_per_env("prev_rewards", _numbers("prev_rewards", prev_rewards, np.float64), batch)
+        # An episode start's reward is the previous episode's last, which only a last_reward model reads; a
+        # run's first step has none.
+        if not self.model.config.last_reward or self.cache.length == 0:
+            rewards = np.where(starts, 0.0, rewards)
         observations = [_numbers(f"observation of env {i}", o, np.float32) for i, o in enumerate(obs)]
         for i, task in enumerate(self.tasks):
             self._check("observation", i, observations[i], (task.env_obs_dim(self.model),))
@@ -450,8 +457,9 @@ class Agent:
         One env (``reset`` with one task): `observation` ``[obs_dim]``, `reward` and `episode_start`
         scalars, the action ``[act_dim]``. Several (a Gymnasium vector env): ``[n_envs, obs_dim]`` in, ``[n_envs,
         act_dim]`` out. Observations and rewards are the env's raw ones; the model normalizes them.
-        `reward`: what the env returned for the previous action, one per env (ignored at an episode start, where
-        it may be None; anywhere else None is an error, never a silent zero).
+        `reward`: what the env returned for the previous action, one per env; at an episode start the previous
+        episode's last reward, read by a `ModelConfig.last_reward` model and ignored (None allowed) by others.
+        None where the model reads a reward is an error, never a silent zero; on the first call it may be None.
         `episode_start`: this observation begins an episode, i.e. the previous step ended one (SB3's
         convention); default: True on the first call after `reset`, False after. A new episode is a
         flag, never a `reset`: the context (what the agent has learned in context) carries over.
@@ -480,20 +488,30 @@ class Agent:
         starts = default_start if episode_start is None else _one_per_env(
             "episode_start", _numbers("episode_start", episode_start, bool), n)
         rewards = np.zeros(n) if reward is None else _one_per_env("reward", _numbers("reward", reward, np.float64), n)
+        last_reward = self.model.config.last_reward
         skip = None
         if mode == "next-step" and not first:
             # An env flagged now ended its episode on the last step: this observation is that episode's last,
-            # which the model never sees as a token. An env that sat out the last step starts one now.
+            # which the model never sees as a token. An env that sat out the last step starts one now, with the
+            # last reward that came with the flag.
             skip = starts & ~self._awaiting_start
             starts = self._awaiting_start.copy()
             self._awaiting_start = skip
+            rewards = np.where(starts, self._last_rewards, rewards)
+            self._last_rewards = np.where(skip, rewards, 0.0)
         # No reward where one is read would feed zeros: the zero-reward ablation, which must never happen unasked.
-        reading = ~starts if skip is None else ~(starts | skip)
+        # A last_reward model also reads, at an episode start, the previous episode's last reward.
+        if skip is None:
+            reading = np.full(n, not first) if last_reward else ~starts
+        else:
+            reading = (skip & last_reward) | ~(starts | skip)
         if reward is None and reading.any():
+            where = "at an episode start, where this model reads the previous episode's last" if last_reward else \
+                "mid-episode, where the model reads the"
             raise AgentInputError(
-                f"reward is None, but env(s) {np.flatnonzero(reading).tolist()[:10]} are mid-episode, where the model "
-                "reads the reward the env returned for the previous action: pass it (None is for episode starts; "
-                "to feed zeros on purpose, pass 0.0)")
+                f"reward is None, but env(s) {np.flatnonzero(reading).tolist()[:10]} are {where} reward the env "
+                "returned for the previous action: pass it (None is for the first step after reset; to feed zeros on "
+                "purpose, pass 0.0)")
         if skip is not None and skip.all():
             actions = self._previous_actions()
         else:

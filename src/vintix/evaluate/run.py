@@ -171,13 +171,15 @@ class RewardFeed:
 
 
 def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], shots: int,
-               progress: bool = False) -> list[list[Episode]]:
+               progress: bool = False, first_rewards: np.ndarray | None = None) -> list[list[Episode]]:
     """Step `envs` (the agent already reset for them) until each has finished `shots` episodes; an
     env that has is dropped from the agent's batch (`Agent.keep`). `feeds[i]` turns env i's rewards
-    into the ones the agent is fed; episode returns and success are the env's own."""
+    into the ones the agent is fed; episode returns and success are the env's own. `first_rewards`: the
+    reward of the step before the first (a prompt's last; zeros for a cold start)."""
     n = len(envs)
     observations = [env.reset()[0] for env in envs]
-    rewards, starts = np.zeros(n), np.ones(n, dtype=bool)
+    rewards = np.zeros(n) if first_rewards is None else np.asarray(first_rewards, np.float64).copy()
+    starts = np.ones(n, dtype=bool)
     returns, lengths = np.zeros(n), np.zeros(n, dtype=int)
     success: list[float | None] = [None] * n
     episodes: list[list[Episode]] = [[] for _ in envs]
@@ -195,8 +197,9 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
                 episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i], observation))
                 bar.update(1)
                 observation, _ = envs[i].reset()
+                rewards[i], starts[i] = feeds[i](reward), True  # the last reward (`ModelConfig.last_reward`)
                 feeds[i].new_episode()
-                returns[i], lengths[i], success[i], rewards[i], starts[i] = 0.0, 0, None, 0.0, True
+                returns[i], lengths[i], success[i] = 0.0, 0, None
             else:
                 rewards[i], starts[i] = feeds[i](reward), False
             observations[i] = observation
@@ -260,7 +263,8 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
         feeds = [RewardFeed(config.reward_input, seed) for _, seed in batch]
-        results = play_shots(agent, envs, feeds, config.shots, progress)
+        last_prompt_rewards = None if prompts is None else np.array([p.rows["reward"][-1] for p in prompts])
+        results = play_shots(agent, envs, feeds, config.shots, progress, last_prompt_rewards)
     finally:
         for env in envs:
             env.close()

@@ -80,6 +80,10 @@ class ModelConfig:
     release, instead of one per group"""
     mask_reward: bool = False
     """'AD without rewards' ablation: the reward embedding is always the padding vector"""
+    last_reward: bool = False
+    """an episode's first token carries the previous episode's last reward (its action part stays padding; a
+    run's first token carries 0), so a reward paid only at an episode's end (a success bonus) reaches the
+    model; False: the paper's token layout, where that reward is never seen and the release's format"""
     activation: str = "gelu"
     """activation in encoders and heads: 'gelu', or 'leaky_relu' as in the official release"""
     policy: str = "deterministic"
@@ -90,6 +94,12 @@ class ModelConfig:
     reward_encoder: str = "linear"
     """'linear': Linear(1, rew_emb_dim) + activation, as in the official release; 'mlp': two layers, the
     first with biases spread over the reward range, so each unit bends at another reward value"""
+
+    @property
+    def pads_reward(self) -> bool:
+        """Whether any token's reward part is the learned padding vector (episode starts, or all under
+        mask_reward); a padding no token uses would be a parameter without a gradient, which DDP refuses."""
+        return self.mask_reward or not self.last_reward
 
     @property
     def d_model(self) -> int:
@@ -130,14 +140,16 @@ class ModelConfig:
 #   Measured: ~4k training tokens/s on 2 cores (one group, fp32), ~14M tokens an hour; a 512-step
 #   window roughly doubles that, since attention dominates at this width.
 # small: a single-GPU model (~14M backbone parameters) with a 2048-step window.
+# Both read an episode's last reward (last_reward), which the paper's layout drops; the models shipped before
+#   that option existed pin last_reward: false in their training configs, so their commands still make them.
 # paper: the paper's hyperparameter table (20 layers, 16 heads, 511+511+2, MLP 4096, 8192 steps) with the
 #   official release's LeakyReLU encoders/heads, shared padding and ``std + 1e-6`` normalization, so a
 #   model trained at this preset exports to the authors' format (`vintix.model.official`).
 PRESETS: dict[str, ModelConfig] = {
-    "tiny": ModelConfig(),
+    "tiny": ModelConfig(last_reward=True),
     "small": ModelConfig(
         n_layers=8, n_heads=8, obs_emb_dim=191, act_emb_dim=191, rew_emb_dim=2,
-        mlp_dim=1536, context_len=2048,
+        mlp_dim=1536, context_len=2048, last_reward=True,
     ),
     "paper": ModelConfig(
         n_layers=20, n_heads=16, obs_emb_dim=511, act_emb_dim=511, rew_emb_dim=2,
@@ -332,18 +344,23 @@ class GroupEncoder(nn.Module):
         # Episode starts have no previous action/reward; a learned vector says so (the model's shared
         # pair under shared_padding: `Vintix.encode` hands the right pair in).
         self.act_pad = None if config.shared_padding else _padding(config.act_emb_dim)
-        self.rew_pad = None if config.shared_padding else _padding(config.rew_emb_dim)
+        self.rew_pad = None if config.shared_padding or not config.pads_reward else _padding(config.rew_emb_dim)
+        self.last_reward = config.last_reward
 
     def forward(
         self, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
-        episode_start: torch.Tensor, act_pad: torch.Tensor, rew_pad: torch.Tensor,
+        episode_start: torch.Tensor, act_pad: torch.Tensor, rew_pad: torch.Tensor | None,
     ) -> torch.Tensor:
         start = episode_start.unsqueeze(-1)
         e_obs = self.obs(obs)
         e_act = torch.where(start, act_pad, self.act(prev_action))
         if self.rew is None:
+            assert rew_pad is not None  # mask_reward pads every token
             e_rew = rew_pad.expand(*e_obs.shape[:-1], -1)
+        elif self.last_reward:  # an episode start's reward is the previous episode's last
+            e_rew = self.rew(prev_reward.unsqueeze(-1))
         else:
+            assert rew_pad is not None
             e_rew = torch.where(start, rew_pad, self.rew(prev_reward.unsqueeze(-1)))
         return torch.cat([e_obs, e_act, e_rew], dim=-1)
 
@@ -474,7 +491,7 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
 
         self.encoders = nn.ModuleDict({g.name: GroupEncoder(g, config) for g in groups})
         self.act_pad = _padding(config.act_emb_dim) if config.shared_padding else None
-        self.rew_pad = _padding(config.rew_emb_dim) if config.shared_padding else None
+        self.rew_pad = _padding(config.rew_emb_dim) if config.shared_padding and config.pads_reward else None
         self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
         self.ln_f = nn.LayerNorm(config.d_model)
         self.heads = nn.ModuleDict(
@@ -561,7 +578,8 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
         prev_reward: torch.Tensor, step_num: torch.Tensor,
     ) -> torch.Tensor:
-        """Tokens ``[B, T, d_model]``; at ``step_num == 0`` prev_action/prev_reward are ignored."""
+        """Tokens ``[B, T, d_model]``; at ``step_num == 0`` prev_action is ignored, and prev_reward too unless
+        `ModelConfig.last_reward` (there it is the previous episode's last reward)."""
         spec = self.groups.get(group)
         if spec is None:
             raise ValueError(f"unknown group {group!r}; the model has {sorted(self.groups)}")
@@ -583,7 +601,7 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         encoder = self.encoders[group]
         owner = self if self.config.shared_padding else encoder
         act_pad, rew_pad = owner.act_pad, owner.rew_pad
-        assert isinstance(act_pad, torch.Tensor) and isinstance(rew_pad, torch.Tensor)  # the owner has both
+        assert isinstance(act_pad, torch.Tensor)  # the owner has it (and rew_pad unless last_reward)
         return encoder(obs, prev_action, prev_reward, episode_start, act_pad, rew_pad)
 
     def backbone(self, x: torch.Tensor) -> torch.Tensor:

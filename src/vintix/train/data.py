@@ -423,24 +423,32 @@ class WindowDataset(torch.utils.data.Dataset):
         t, h, e, offset, k = self.locate(index)
         task = self.data.tasks[t]
         history = task.histories[h]
-        parts: dict[str, list[np.ndarray]] = {
-            key: [] for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
+        parts: dict[str, list[np.ndarray]] = {key: [] for key in ("obs", "step_num", "action")}
+        executed: dict[str, list[np.ndarray]] = {"action": [], "reward": []}
+        before: dict[str, np.ndarray] = {}
         for n, (lo, hi) in enumerate(history.segments(e, offset, self.window_len, k)):
-            # Only the first segment can start mid-episode; then read one row earlier for the true
-            # previous action/reward. Later segments start episodes, where the model pads.
-            first = lo - 1 if n == 0 and offset > 0 else lo
+            # The window's first token reads the history's previous row, if any, for its previous action and
+            # reward: a mid-episode one is what the model sees once its sliding window is full, and an
+            # episode start's reward is the previous episode's last (`ModelConfig.last_reward`).
+            first = lo - 1 if n == 0 and lo > 0 else lo
             rows = history.history.read(first, hi, demonstrator_action=task.target == "demonstrator_action")
+            if first < lo:
+                before = {key: rows[key][0] for key in executed}
             skip = lo - first
-            act, rew = rows["action"], rows["reward"]
-            prev_act = act[:-1] if skip else np.concatenate([np.zeros_like(act[:1]), act[:-1]])
-            prev_rew = rew[:-1] if skip else np.concatenate([np.zeros_like(rew[:1]), rew[:-1]])
+            for key in executed:
+                executed[key].append(rows[key][skip:])
             parts["obs"].append(rows["observation"][skip:])
-            parts["prev_action"].append(prev_act)
-            parts["prev_reward"].append(prev_rew)
             parts["step_num"].append(rows["step_num"][skip:].astype(np.int64))
             # The context always holds the actions that were executed; the target may be the demonstrator's.
             parts["action"].append(rows[task.target][skip:])
         window: Window = {key: np.concatenate(value) for key, value in parts.items()}
+        # Token t carries step t-1's action and reward, across segment borders too: with episode sparsity an
+        # episode's start carries the last reward of the episode before it in the window. The history's
+        # first row has none (zeros).
+        for key, name in (("action", "prev_action"), ("reward", "prev_reward")):
+            done = np.concatenate(executed[key])
+            first_row = before.get(key, np.zeros_like(done[0]))
+            window[name] = np.concatenate([first_row[None], done[:-1]])
         window.update(task_idx=t, group=task.group)
         return window
 
