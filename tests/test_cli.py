@@ -4,6 +4,7 @@ import csv
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -267,3 +268,22 @@ def test_an_output_on_a_read_only_file_system_is_refused_before_any_work(read_on
     output = " ".join(result.output.split())
     assert result.exit_code == 2 and f"{read_only_folder} is not writable here (a read-only file system" in output
     assert "measured" not in output and "wrote" not in output, output
+
+
+def test_eval_prints_a_tasks_means_and_a_domains_iqm_as_the_report_gives_them(tmp_path):
+    from vintix.evaluate import iqm
+
+    out = tmp_path / "results"
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", "point-goal", "--tasks", "point-goal-v1", "--shots", "3",
+                                      "--seeds", "5", "--first-seed", "100", "--out", str(out)],
+                                env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    text = " ".join(result.output.split())
+    assert "mean over 5 run(s) per task" in text and "mean of all 3 shots" in text  # 10 shots: not a 10-shot plateau
+    assert "IQM of the normalized score" in text
+    first = np.array([float(r["normalized_ours"]) for r in rows if r["shot"] == "1"])
+    assert round(float(np.mean(first)), 2) != round(float(iqm(first)), 2)  # the two statistics tell apart here
+    cells = {line.split("│")[1].strip(): line.split("│")[2:] for line in result.output.splitlines() if "│" in line}
+    assert cells["point-goal-v1"][1].strip() == f"{np.mean(first):.2f}"  # after the variation column
+    assert cells["toy train"][0].strip() == f"{float(iqm(first)):.2f}"

@@ -18,6 +18,7 @@ from vintix.agent import Agent
 from vintix.cli import app
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.evaluate import EvalConfig, best_k_plateau, converged_gap_with_ci, evaluate, iqm_with_ci
+from vintix.evaluate.summary import estimate_with_ci
 from vintix.report import load_results
 
 
@@ -51,12 +52,13 @@ def test_report_has_every_figure_and_the_aggregates_of_the_episodes(two_results,
     assert all(f"]({'figures/' + name})" in report for name in expected)
     assert "Reward-use gap" not in report  # two checkpoints, both fed true rewards: no reward ablation
 
-    # the reach-v3 row of AD: first-shot IQM with CI, best-2-shot plateau, and the same of the success
-    # rate (a plain mean over runs), from the episodes themselves
+    # the reach-v3 row of AD: first-shot mean over runs with CI (what `vintix eval` prints), best-2-shot
+    # plateau, and the same of the success rate, from the episodes themselves
     rows = [r for r in csv.DictReader((two_results / "ad" / "episodes.csv").open()) if r["task"] == "reach-v3"]
     scores = np.array([[float(r["normalized_paper"]) for r in rows if r["seed"] == s] for s in "012"])
     success = np.array([[float(r["success"]) for r in rows if r["seed"] == s] for s in "012"])
-    first = iqm_with_ci(scores[:, 0])
+    first = estimate_with_ci(scores[:, 0], np.mean)
+    assert first[0] == pytest.approx(scores[:, 0].mean())
     plateau, start = best_k_plateau(scores.mean(0), 2)
     line = next(line for line in report.splitlines() if line.startswith("| reach-v3 | AD |"))
     assert line == (f"| reach-v3 | AD | 3 | {first[0]:.2f} [{first[1]:.2f}, {first[2]:.2f}] | {plateau:.2f} | "
@@ -77,8 +79,10 @@ def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_ga
     true, _ = load_results(two_results / "ad", "paper")
     zero, _ = load_results(two_results / "ad-zero", "paper")
     assert (true.reward_input, zero.reward_input) == ("true", "zero") and true.seeds["reach-v3"] == [0, 1, 2]
-    score = converged_gap_with_ci([(true.scores["reach-v3"], zero.scores["reach-v3"])], 2, paired=True)
-    success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True)
+    score = converged_gap_with_ci([(true.scores["reach-v3"], zero.scores["reach-v3"])], 2, paired=True,
+                                  same_window=True)
+    success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True,
+                                    same_window=True)
     cells = (f"| AD | zero | 3, paired by seed | {score[0]:+.2f} [{score[1]:+.2f}, {score[2]:+.2f}] | "
              f"{100 * success[0]:+.0f} pp [{100 * success[1]:+.0f}, {100 * success[2]:+.0f}] |")
     lines = report.split("## Reward-use gap")[1].split("## Between models")[0].splitlines()
@@ -136,6 +140,17 @@ def test_the_converged_gap_pairs_runs_by_seed_and_resamples_within_tasks():
     assert converged_gap_with_ci([(true[:, :5], zero)], 3, paired=True)[0] == pytest.approx(cut)
     one = converged_gap_with_ci([(true[:1], zero[:1])], 3, paired=True)  # nothing to resample
     assert one[0] == one[1] == one[2]
+
+
+def test_a_reward_ablation_is_scored_over_the_true_runs_best_shots():
+    """A probing first episode that does better than the later shots with zeros fed back must not count for the
+    zero run when the true run's converged leaves it out."""
+    true = np.array([[0.1, 0.9, 1.0, 1.0], [0.1, 0.9, 0.9, 1.0]])  # the probe, then found
+    zero = np.array([[0.6, 0.1, 0.1, 0.2], [0.6, 0.2, 0.1, 0.1]])  # the probe is its best shot
+    own = converged_gap_with_ci([(true, zero)], 2, paired=True)[0]
+    same = converged_gap_with_ci([(true, zero)], 2, paired=True, same_window=True)
+    assert own == pytest.approx(0.975 - 0.375)  # the zero run's own best window, shots 1-2
+    assert same[0] == pytest.approx(0.975 - 0.125) and same[1] <= same[0] <= same[2]  # shots 3-4 for both
 
 
 def test_results_from_before_the_reward_ablation_read_as_true_rewards(two_results, tmp_path):

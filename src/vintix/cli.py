@@ -988,7 +988,7 @@ def eval_command(
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.agent.pretrained import checkpoint_name
-    from vintix.evaluate import evaluate, parse_variation, shot_curves, shots_to_show, summarize
+    from vintix.evaluate import evaluate, iqm, parse_variation, shot_curves, shots_to_show, summarize
     from vintix.tasks.scores import check_table
 
     torch.set_num_threads(threads)
@@ -1007,7 +1007,7 @@ def eval_command(
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     if reward_input != "true":
         console.print(f"rewards fed back to the model: {reward_input}; scores and success from the true returns")
-    plateau = f"best {min(PLATEAU_SHOTS, shots)}-shot plateau"
+    plateau = f"best {PLATEAU_SHOTS}-shot plateau" if PLATEAU_SHOTS < shots else f"mean of all {shots} shots"
     with_success = any(s["success_first"] is not None for s in summary)
     table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task"
                         + ("; success rate where the task has a success flag" if with_success else ""))
@@ -1030,11 +1030,12 @@ def eval_command(
     console.print(table)
     shown = shots_to_show(shots)
     which = "at each shot" if len(shown) == shots else f"at shots {', '.join(map(str, shown))} of {shots}"
-    per_shot = Table(title=f"in context: mean normalized score ({reference} reference) {which}, over tasks and runs")
+    per_shot = Table(title=f"in context: IQM of the normalized score ({reference} reference) {which} over the "
+                           "domain's runs, as `vintix report` gives it; success rate: mean over runs")
     per_shot.add_column("domain")
     for shot in shown:
         per_shot.add_column(f"shot {shot}", justify="right")
-    scores, successes = shot_curves(rows, f"normalized_{reference}"), shot_curves(rows, "success")
+    scores, successes = shot_curves(rows, f"normalized_{reference}", iqm), shot_curves(rows, "success")
     for domain, curve in scores.items():
         per_shot.add_row(domain, *(f"{curve[shot - 1]:.2f}" if shot <= len(curve) else "" for shot in shown))
         if domain in successes:

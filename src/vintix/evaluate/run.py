@@ -356,9 +356,9 @@ def summarize(rows: Sequence[dict[str, Any]], table: str = "paper",
     successes = _by_shot(rows, "success", _task_variant)
     summary = []
     for (task, variation), shots in sorted(scores.items()):
-        curve = _mean_curve(shots)
+        curve = _curve(shots)
         plateau, at = best_k_plateau(curve, plateau_shots)
-        success = _mean_curve(successes[task, variation]) if (task, variation) in successes else None
+        success = _curve(successes[task, variation]) if (task, variation) in successes else None
         paper = get_task(task).paper_vintix_normalized
         summary.append({"task": task, "variation": variation, "runs": len(shots[min(shots)]), "first": curve[0],
                         "last": curve[-1], "plateau": plateau, "plateau_from": at + 1,
@@ -368,11 +368,12 @@ def summarize(rows: Sequence[dict[str, Any]], table: str = "paper",
     return summary
 
 
-def shot_curves(rows: Sequence[dict[str, Any]], column: str = "normalized_paper") -> dict[str, np.ndarray]:
-    """Per domain (with split and variation, e.g. 'industrial_benchmark test'): the mean of `column`
-    (a normalized score, or 'success') at each shot over all its tasks and runs that have it, shots as
-    far as every run went."""
-    return {name: _mean_curve(shots) for name, shots in sorted(_by_shot(rows, column, _domain_name).items())}
+def shot_curves(rows: Sequence[dict[str, Any]], column: str = "normalized_paper",
+                statistic: Callable[[np.ndarray], Any] = np.mean) -> dict[str, np.ndarray]:
+    """Per domain (with split and variation, e.g. 'industrial_benchmark test'): `statistic` (the mean, or
+    `iqm` as `vintix report` aggregates a domain's scores) of `column` (a normalized score, or 'success') at
+    each shot over all its tasks and runs that have it, shots as far as every run went."""
+    return {name: _curve(shots, statistic) for name, shots in sorted(_by_shot(rows, column, _domain_name).items())}
 
 
 def _task_variant(row: dict[str, Any]) -> tuple[str, str]:
@@ -396,8 +397,8 @@ def _by_shot(rows: Sequence[dict[str, Any]], column: str, key: Callable[[dict[st
     return grouped
 
 
-def _mean_curve(shots: dict[int, list[float]]) -> np.ndarray:
-    return np.array([np.mean(shots[s]) for s in sorted(shots)])
+def _curve(shots: dict[int, list[float]], statistic: Callable[[np.ndarray], Any] = np.mean) -> np.ndarray:
+    return np.array([statistic(np.asarray(shots[s])) for s in sorted(shots)])
 
 
 def shots_to_show(shots: int, columns: int = 12) -> list[int]:

@@ -3,7 +3,7 @@ the gap between two conditions' converged scores (e.g. true vs zero rewards fed 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -15,20 +15,26 @@ def iqm(values: np.ndarray, axis: int = 0) -> np.ndarray:
     return trim_mean(values, 0.25, axis=axis)
 
 
-def iqm_with_ci(values: np.ndarray, confidence: float = 0.95, resamples: int = 2000, seed: int = 0
-                ) -> tuple[float, float, float]:
-    """IQM of 1-D `values` and its percentile-bootstrap confidence interval over the values.
-    With fewer than 2 values there is nothing to resample: the interval is the point itself."""
+def estimate_with_ci(values: np.ndarray, statistic: Callable[..., np.ndarray] = iqm, confidence: float = 0.95,
+                     resamples: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+    """`statistic` (IQM, or np.mean) of 1-D `values` and its percentile-bootstrap confidence interval over the
+    values. With fewer than 2 values there is nothing to resample: the interval is the point itself."""
     values = np.asarray(values, dtype=np.float64)
     values = values[np.isfinite(values)]
     if len(values) == 0:
         return float("nan"), float("nan"), float("nan")
-    point = float(iqm(values))
+    point = float(statistic(values, axis=0))
     if len(values) < 2 or np.ptp(values) == 0:
         return point, point, point
-    result = bootstrap((values,), iqm, confidence_level=confidence, n_resamples=resamples, method="percentile",
-                       vectorized=True, axis=-1, random_state=np.random.default_rng(seed))
+    result = bootstrap((values,), statistic, confidence_level=confidence, n_resamples=resamples,
+                       method="percentile", vectorized=True, axis=-1, random_state=np.random.default_rng(seed))
     return point, float(result.confidence_interval.low), float(result.confidence_interval.high)
+
+
+def iqm_with_ci(values: np.ndarray, confidence: float = 0.95, resamples: int = 2000, seed: int = 0
+                ) -> tuple[float, float, float]:
+    """IQM of 1-D `values` and its percentile-bootstrap confidence interval (`estimate_with_ci`)."""
+    return estimate_with_ci(values, iqm, confidence, resamples, seed)
 
 
 def stratified_iqm_with_ci(groups: Sequence[np.ndarray], confidence: float = 0.95, resamples: int = 2000,
@@ -66,11 +72,13 @@ def best_k_plateau(curve: np.ndarray, k: int) -> tuple[float, int]:
 
 
 def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int, paired: bool,
-                          confidence: float = 0.95, resamples: int = 2000, seed: int = 0
+                          confidence: float = 0.95, resamples: int = 2000, seed: int = 0, same_window: bool = False
                           ) -> tuple[float, float, float]:
     """The mean over tasks of converged(a) − converged(b), for one ``(a, b)`` pair of ``[runs, shots]``
     arrays per task (converged: the best `k`-shot plateau of the mean curve over runs), and its
-    percentile-bootstrap confidence interval.
+    percentile-bootstrap confidence interval. With `same_window`, b's converged is its mean over the
+    shots of a's best window, not its own best: for an ablation of a (the same model fed zero rewards),
+    whose own best window could hold shots (a probe) that a's converged leaves out.
 
     The bootstrap resamples runs within each task (a stratified bootstrap); with `paired`, row i of
     `a` and of `b` are the same seed and are resampled together, which keeps the seeds' own spread
@@ -91,7 +99,7 @@ def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int
         which = [(2 * i, 2 * i + 1) for i in range(len(pairs))]
 
     def gap(*indices: np.ndarray, axis: int = -1) -> np.ndarray:
-        return np.mean([_converged(a[indices[i]], k) - _converged(b[indices[j]], k)
+        return np.mean([_converged_difference(a[indices[i]], b[indices[j]], k, same_window)
                         for (a, b), (i, j) in zip(pairs, which, strict=True)], axis=0)
 
     point = float(gap(*samples))
@@ -102,6 +110,11 @@ def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int
     return point, float(result.confidence_interval.low), float(result.confidence_interval.high)
 
 
-def _converged(runs: np.ndarray, k: int) -> np.ndarray:
-    """Best k-shot plateau of the mean curve of ``[..., runs, shots]`` (leading axes: bootstrap resamples)."""
-    return window_means(runs.mean(axis=-2), k).max(axis=-1)
+def _converged_difference(a: np.ndarray, b: np.ndarray, k: int, same_window: bool) -> np.ndarray:
+    """converged(a) − converged(b) of ``[..., runs, shots]`` arrays (leading axes: bootstrap resamples): the
+    best k-shot plateau of each mean curve, or with `same_window` b's mean over a's best window."""
+    windows_a, windows_b = window_means(a.mean(axis=-2), k), window_means(b.mean(axis=-2), k)
+    if not same_window:
+        return windows_a.max(axis=-1) - windows_b.max(axis=-1)
+    best = windows_a.argmax(axis=-1)[..., None]
+    return (np.take_along_axis(windows_a, best, axis=-1) - np.take_along_axis(windows_b, best, axis=-1))[..., 0]

@@ -2,8 +2,8 @@
 
 Scores are renormalized from the raw episode returns with the chosen reference table, so a report
 made after our demonstrators are scored uses them even for older results. Aggregation:
-a task's curve is the IQM over its runs (seeds) at each shot, a domain's the IQM over all runs of
-its tasks, each with a percentile-bootstrap 95 % CI over runs; a task's converged score is its best
+a task's curve is the mean over its runs (seeds) at each shot, as `vintix eval` prints it, a domain's the
+IQM over all runs of its tasks, each with a percentile-bootstrap 95 % CI over runs; a task's converged score is its best
 k-shot plateau (the best mean over k consecutive shots of its mean curve), the paper's "performance
 after reaching inference-time convergence". Several result folders (e.g. AD, ED, AD without
 reward) share every figure and table, one line or bar each. Tasks with a success flag (Meta-World)
@@ -35,7 +35,13 @@ from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
 from vintix.evaluate.config import PLATEAU_SHOTS
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
-from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm_with_ci, stratified_iqm_with_ci
+from vintix.evaluate.summary import (
+    best_k_plateau,
+    converged_gap_with_ci,
+    estimate_with_ci,
+    iqm_with_ci,
+    stratified_iqm_with_ci,
+)
 from vintix.tasks import get_task
 from vintix.tasks.custom import register_specs
 from vintix.tasks.scores import (
@@ -156,10 +162,12 @@ def _checked_episode(row: dict[str, str]) -> tuple[float, int, float]:
 
 
 def curve_with_ci(scores: np.ndarray | list[np.ndarray]) -> np.ndarray:
-    """IQM and 95 % CI over runs at each shot: ``[shots, 3]`` (point, low, high). A list of several
-    tasks' ``[runs, shots]`` arrays pools their runs, with a bootstrap stratified by task."""
+    """The score and its 95 % CI over runs at each shot: ``[shots, 3]`` (point, low, high). One task's
+    ``[runs, shots]`` array: the mean over runs (what `vintix eval` prints, and what *converged* averages). A
+    list of several tasks' arrays (a domain): the IQM over their runs pooled, with a bootstrap stratified by
+    task, robust to one task's failed runs."""
     if isinstance(scores, np.ndarray):
-        return np.array([iqm_with_ci(scores[:, shot]) for shot in range(scores.shape[1])])
+        return np.array([estimate_with_ci(scores[:, shot], np.mean) for shot in range(scores.shape[1])])
     shots = min(s.shape[1] for s in scores)
     return np.array([stratified_iqm_with_ci([s[:, shot] for s in scores]) for shot in range(shots)])
 
@@ -180,8 +188,9 @@ def _save(figure: Figure, path: Path) -> Path:
     return path
 
 
-def plot_curves(curves: dict[str, tuple[np.ndarray, int]], title: str, path: Path) -> Path:
-    """Normalized score vs shot, one IQM line with its CI band per label (label -> (curve, runs))."""
+def plot_curves(curves: dict[str, tuple[np.ndarray, int]], title: str, path: Path, statistic: str) -> Path:
+    """Normalized score vs shot, one line (`statistic`: 'IQM' or 'mean') with its CI band per label (label ->
+    (curve, runs))."""
     figure = Figure(figsize=(6, 4))
     axis = figure.subplots()
     for label, (curve, runs) in curves.items():
@@ -193,7 +202,8 @@ def plot_curves(curves: dict[str, tuple[np.ndarray, int]], title: str, path: Pat
     axis.axhline(1.0, color="gray", linestyle="--", linewidth=0.8)
     axis.axhline(0.0, color="gray", linestyle=":", linewidth=0.8)
     axis.xaxis.set_major_locator(MaxNLocator(integer=True))  # shots are whole episodes
-    axis.set(xlabel="shot (episode from an empty context)", ylabel="normalized score (IQM, 95% CI)", title=title)
+    axis.set(xlabel="shot (episode from an empty context)", ylabel=f"normalized score ({statistic}, 95% CI)",
+             title=title)
     _legend_below(axis)
     return _save(figure, path)
 
@@ -272,18 +282,21 @@ def reward_ablations(results: list[Results]) -> tuple[list[tuple[Results, Result
     return pairs, notes
 
 
-def _gap_cells(first: Results, other: Results, variants: list[str], k: int) -> list[str]:
+def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same_window: bool) -> list[str]:
     """Runs, and the mean over `variants` of converged(first) − converged(other) with its CI, for the
     normalized score and (where every variant has one) the success rate; `first` is the true-reward
-    folder of a reward ablation, or the first model of a comparison."""
+    folder of a reward ablation (`same_window`: the ablated run over the true run's best window), or the
+    first model of a comparison."""
     paired = all(first.seeds[v] == other.seeds[v] for v in variants)
     if paired:
         runs = f"{sum(len(first.seeds[v]) for v in variants)}, paired by seed"
     else:
         runs = f"{sum(len(first.seeds[v]) for v in variants)} vs {sum(len(other.seeds[v]) for v in variants)}"
-    score = converged_gap_with_ci([(first.scores[v], other.scores[v]) for v in variants], k, paired)
+    score = converged_gap_with_ci([(first.scores[v], other.scores[v]) for v in variants], k, paired,
+                                  same_window=same_window)
     with_success = all(v in first.success and v in other.success for v in variants)
-    success = (_success_gap(*converged_gap_with_ci([(first.success[v], other.success[v]) for v in variants], k, paired))
+    success = (_success_gap(*converged_gap_with_ci([(first.success[v], other.success[v]) for v in variants], k, paired,
+                                                   same_window=same_window))
                if with_success else "—")
     return [runs, _score_gap(*score), success]
 
@@ -306,7 +319,7 @@ def model_comparisons(results: list[Results]) -> list[tuple[Results, Results]]:
 
 
 def _gap_tables(pairs: list[tuple[Results, Results]], other_column: str, other_cell: Callable[[Results], str],
-                table: str, k: int) -> list[str]:
+                table: str, k: int, same_window: bool) -> list[str]:
     """Per-domain and per-task tables (markdown lines) of converged(first) − converged(other) with CIs
     for (first, other) folder pairs; `other_cell` names the other folder in its column."""
     columns = (f"model (true rewards) | {other_column} | runs | Δ converged score ({table}) | Δ converged success |"
@@ -317,10 +330,10 @@ def _gap_tables(pairs: list[tuple[Results, Results]], other_column: str, other_c
         for domain in sorted({first.domains[v] for v in common}):
             variants = [v for v in common if first.domains[v] == domain]
             domain_lines.append(f"| {domain} | {first.label} | {other_cell(other)} | "
-                                + " | ".join(_gap_cells(first, other, variants, k)) + " |")
+                                + " | ".join(_gap_cells(first, other, variants, k, same_window)) + " |")
         for variant in common:
             task_lines.append(f"| {variant} | {first.label} | {other_cell(other)} | "
-                              + " | ".join(_gap_cells(first, other, [variant], k)) + " |")
+                              + " | ".join(_gap_cells(first, other, [variant], k, same_window)) + " |")
     return ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
 
 
@@ -336,11 +349,12 @@ def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int)
              "should do worse; a gap near zero means the improvement over shots is not reward-driven. "
              "Shuffled rewards keep each episode's own reward values but break their link to the states and "
              "actions that earned them. Every score below comes from the true returns; only what the model was "
-             f"fed differs. Δ = converged(true) − converged(ablated), *converged* the best {k}-shot plateau of a "
-             "task's mean curve; a domain's Δ is the mean of its tasks' Δ. 95 % CIs: percentile bootstrap "
-             "resampling runs within each task, a seed's two runs (same env, same Meta-World goal) together when "
-             "both folders ran the same seeds.\n"]
-    return lines + _gap_tables(pairs, "fed back instead", _fed_instead, table, k)
+             f"fed differs. Δ = converged(true) − the ablated run's mean over the same shots, *converged* the best "
+             f"{k}-shot plateau of a task's mean curve (so shots the true run's converged leaves out, a probing "
+             "first episode, count for neither); a domain's Δ is the mean of its tasks' Δ. 95 % CIs: percentile "
+             "bootstrap resampling runs within each task, a seed's two runs (same env, same Meta-World goal) "
+             "together when both folders ran the same seeds.\n"]
+    return lines + _gap_tables(pairs, "fed back instead", _fed_instead, table, k, same_window=True)
 
 
 def model_comparison_section(pairs: list[tuple[Results, Results]], table: str, k: int) -> list[str]:
@@ -351,7 +365,7 @@ def model_comparison_section(pairs: list[tuple[Results, Results]], table: str, k
              f"Δ = converged(first) − converged(other), *converged* the best {k}-shot plateau of a task's mean "
              "curve; a domain's Δ is the mean of its tasks' Δ; CIs as for the reward-use gap, runs paired by "
              "seed when both folders ran the same seeds.\n"]
-    return lines + _gap_tables(pairs, "compared with", lambda other: other.label, table, k)
+    return lines + _gap_tables(pairs, "compared with", lambda other: other.label, table, k, same_window=False)
 
 
 def write_report(folders: list[Path], out: Path, table: str = "paper",
@@ -377,8 +391,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
     figures = out / "figures"
     lines = ["# In-context evaluation report\n",
              f"Normalized score `(R − random) / (expert − random)` with the **{table}** reference table; "
-             f"curves are IQMs over runs with percentile-bootstrap 95 % CIs; *converged* is the best "
-             f"{plateau_shots}-shot plateau of a task's mean curve (paper §3)."
+             "a task's scores are means over its runs (as `vintix eval` prints them), a domain's are IQMs over its "
+             "runs (shot 1) and over its tasks' converged scores, each with a percentile-bootstrap 95 % CI; "
+             f"*converged* is the best {plateau_shots}-shot plateau of a task's mean curve (paper §3)."
              + (" Success rates (tasks with a success flag) are means over runs." if with_success else "") + "\n",
              "| label | checkpoint | shots | runs/task | variation | prompt steps | rewards fed back | tasks |",
              "|---|---|---|---|---|---|---|---|"]
@@ -414,7 +429,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
             cells += [_ci(*curves[r.label][0][0]), _ci(*iqm_with_ci(plateaus))]
             if with_success:
                 cells += _success_cells(r, variants, plateau_shots)
-        plot_curves(curves, f"{domain}: normalized score vs shot", figures / f"domain-{_slug(domain)}.png")
+        plot_curves(curves, f"{domain}: normalized score vs shot", figures / f"domain-{_slug(domain)}.png", "IQM")
         if model_card:
             iqm = MODEL_CARD_DOMAIN_IQM.get(domain.removesuffix(" train"))  # the card's IQMs are of training tasks
             cells.append("—" if iqm is None else f"{iqm:.2f}")
@@ -454,7 +469,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
                 cells += _success_cells(r, [variant], plateau_shots)
                 cells.append("—" if blind is None else _rate(blind.goal_blind_success))
             lines.append("| " + " | ".join(cells) + " |")
-        plot_curves(curves, variant, figures / "tasks" / f"{_slug(variant)}.png")
+        plot_curves(curves, variant, figures / "tasks" / f"{_slug(variant)}.png", "mean")
     longest = max(scores.shape[1] for r in results for scores in r.scores.values())
     plot_first_vs_converged(bars, min(plateau_shots, longest), figures / "first-vs-converged.png")
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
