@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import errno
+import json
 import math
 import re
 import shutil
@@ -153,6 +154,19 @@ def test_resume_into_a_different_model_config_is_refused(metaworld_data, tmp_pat
         Trainer(make_config(metaworld_data, out, model_overrides={**TEST_MODEL, "mlp_dim": 32}))
     with pytest.raises(CheckpointError, match="tasks differ"):
         Trainer(make_config(metaworld_data, out, tasks=["reach-v3"]))
+
+
+def test_a_checkpoint_from_before_a_model_field_existed_resumes_with_that_fields_default(metaworld_data, tmp_path):
+    out, paper_layout = tmp_path / "run", {**TEST_MODEL, "last_reward": False}
+    Trainer(make_config(metaworld_data, out, max_steps=1, model_overrides=paper_layout)).run()
+    checkpoint = latest_checkpoint(out)
+    written = json.loads((checkpoint / "config.json").read_text())
+    del written["config"]["last_reward"]  # as a checkpoint written before the field was added
+    (checkpoint / "config.json").write_text(json.dumps(written))
+    with pytest.raises(CheckpointError, match=r"last_reward \(checkpoint False, now True\)"):
+        Trainer(make_config(metaworld_data, out, max_steps=2))  # the tiny preset reads the last reward
+    resumed = Trainer(make_config(metaworld_data, out, max_steps=2, model_overrides=paper_layout))
+    assert resumed.step == 1 and not resumed.model.config.last_reward
 
 
 def test_gradient_accumulation_weights_micro_batches_equally(metaworld_data, tmp_path):

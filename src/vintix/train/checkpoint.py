@@ -247,7 +247,10 @@ def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec
     checkpoint's metadata (for `resume_changes`)."""
     meta = read_metadata(directory)
     problems = []
-    saved_config, wanted_config = meta["config"], dataclasses.asdict(config)
+    # A field the checkpoint lacks was added to ModelConfig after it was written: it has the field's default,
+    # as loading it gives it (`load_pretrained`).
+    defaults = {f.name: f.default for f in dataclasses.fields(ModelConfig)}
+    saved_config, wanted_config = {**defaults, **meta["config"]}, dataclasses.asdict(config)
     changed = sorted(k for k in set(saved_config) | set(wanted_config) if saved_config.get(k) != wanted_config.get(k))
     if changed:
         problems.append("model config differs in " + ", ".join(
