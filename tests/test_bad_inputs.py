@@ -1102,6 +1102,93 @@ documented("tasks", "get_task('Pusher-v4') is Pusher-v5",
            lambda: None if __import__("vintix").get_task("Pusher-v4").name == "Pusher-v5" else "not the v5 task")
 
 
+# Trust (issue 47, class 1): code that a checkpoint's or dataset's file names runs only when the user says so.
+PROBE_TASK = {"env_factory": "trust_probe:make", "obs_dim": 39, "act_dim": 4, "episode_length": 500,
+              "group": "metaworld"}
+
+
+@once
+def probe_code() -> Path:
+    """A module whose factory leaves a mark when it runs (and makes a real env), importable here."""
+    folder = WORK / "probe-code"
+    folder.mkdir()
+    (folder / "trust_probe.py").write_text(
+        "from pathlib import Path\n\nimport vintix\n\n\ndef make(**kwargs):\n"
+        "    Path(__file__).with_name('ran').touch()\n    return vintix.make_env('reach-v3', seed=0)\n")
+    sys.path.insert(0, str(folder))
+    return folder
+
+
+@once
+def code_naming_checkpoint() -> Path:
+    """The model-only checkpoint, its config naming three custom tasks whose env a factory makes."""
+    probe_code()
+    directory = WORK / "ckpt-names-code"
+    shutil.copytree(model_checkpoint(), directory)
+    config = json.loads((directory / "config.json").read_text())
+    config["custom_tasks"] = {name: PROBE_TASK for name in ("probe-refused", "probe-yours", "probe-trusted")}
+    (directory / "config.json").write_text(json.dumps(config))
+    return directory
+
+
+def probe_ran() -> str | None:
+    ran = probe_code() / "ran"
+    if ran.exists():
+        ran.unlink()
+        return "the factory ran"
+    return None
+
+
+def eval_probe(task: str, *options: object) -> list[object]:
+    return [*options, "eval", "--checkpoint", code_naming_checkpoint(), "--tasks", task, "--shots", "1", "--seeds",
+            "1", "--out", WORK / f"results-{task}"]
+
+
+cli_error("trust", "eval of a checkpoint whose custom task names an env factory", lambda: eval_probe("probe-refused"),
+          "--trust-code", after=probe_ran)
+
+
+def yours_or_trusted_runs(task: str, *options: object) -> Callable[[], str | None]:
+    def check() -> str | None:
+        try:
+            code, output = invoke(*eval_probe(task, *options))
+        finally:
+            os.environ.pop("VINTIX_TRUST_CODE", None)  # --trust-code sets it for the process
+        if code != 0:
+            return f"exit {code}: {output[-300:]}"
+        return None if probe_ran() else "exit 0, but the factory never ran"
+    return check
+
+
+@once
+def probe_tasks_file() -> Path:
+    path = WORK / "probe-tasks.yaml"
+    path.write_text(json.dumps({"tasks": {"probe-yours": PROBE_TASK}}))  # JSON is YAML
+    return path
+
+
+documented("trust", "a task you registered yourself (tasks file) runs its factory without --trust-code",
+           lambda: yours_or_trusted_runs("probe-yours", "--tasks-file", probe_tasks_file())())
+documented("trust", "--trust-code runs the factory a checkpoint names",
+           yours_or_trusted_runs("probe-trusted", "--trust-code"))
+
+
+def dataset_naming_code() -> object:
+    """make_env of a task that a dataset's task JSON registered, its spec naming a factory."""
+    import vintix
+    from vintix.data import read_task_metadata, write_task_metadata
+
+    probe_code()
+    folder = write_task_metadata(WORK / "data-names-code" / "custom" / "probe-data", "probe-data", 39, 4,
+                                 custom_task=PROBE_TASK).parent
+    read_task_metadata(folder)
+    return vintix.make_env("probe-data", seed=0)
+
+
+api_error("trust", "make_env of a task a dataset's task JSON names, with a factory", dataset_naming_code,
+          "VINTIX_TRUST_CODE=1")
+
+
 def python_dash_m() -> str | None:
     env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "industrial_benchmark"],

@@ -7,6 +7,7 @@ import errno
 import importlib.util
 import io
 import json
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -106,8 +107,15 @@ def _main(
     tasks_file: Annotated[list[Path] | None, typer.Option(
         help="a YAML file of your own tasks to register before the command (repeatable; the environment "
              "variable VINTIX_TASKS does the same for every process): docs/tasks.md#your-own-environment")] = None,
+    trust_code: Annotated[bool, typer.Option(
+        "--trust-code", help="run the code (env factories, module:EnvId ids) that a checkpoint's or dataset's custom "
+                             "task specs name; without it only tasks you registered yourself run code "
+                             "(VINTIX_TRUST_CODE=1 does the same): docs/tasks.md#trust")] = False,
 ) -> None:
-    from vintix.tasks.custom import register_tasks_file
+    from vintix.tasks.custom import TRUST_VARIABLE, register_tasks_file
+
+    if trust_code:  # in the environment, so that Ray workers and forked collectors trust it too
+        os.environ[TRUST_VARIABLE] = "1"
 
     # Simulator warnings that say nothing to a user of the CLI, once for every command (and the worker
     # processes it forks): metaworld's scripted policies warn on every batch that the env clips their
@@ -1007,6 +1015,11 @@ def eval_command(
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     if reward_input != "true":
         console.print(f"rewards fed back to the model: {reward_input}; scores and success from the true returns")
+    written = f"{len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}"
+    if not summary:  # no reference scores to normalize by (a task of your own without them)
+        console.print(f"no task has a {reference} reference score, so there is no normalized table; wrote {written} "
+                      "(returns and success per episode)")
+        return
     plateau = f"best {PLATEAU_SHOTS}-shot plateau" if PLATEAU_SHOTS < shots else f"mean of all {shots} shots"
     with_success = any(s["success_first"] is not None for s in summary)
     table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task"
@@ -1043,7 +1056,7 @@ def eval_command(
             per_shot.add_row("  success rate",
                              *(_rate(success[shot - 1]) if shot <= len(success) else "" for shot in shown))
     console.print(per_shot)
-    console.print(f"wrote {len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}")
+    console.print(f"wrote {written}")
 
 
 def _rate(rate: float | None) -> str:

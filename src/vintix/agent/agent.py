@@ -251,16 +251,16 @@ class Agent:
 
     @classmethod
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu",
-                        threads: int | None = None) -> Agent:
+                        threads: int | None = None, trust_code: bool = False) -> Agent:
         """An agent around the model saved in `directory`: a checkpoint (see `vintix.model.save_pretrained`),
         a training run's folder (its best checkpoint, else its newest), or a shipped model's name
         (`vintix.agent.shipped_models`, e.g. ``"cpu-suite"``). A damaged checkpoint of a training run
         raises CheckpointError naming the run's newest intact one: evaluating another step than the
         one asked for is the user's choice, never a silent fallback. `threads`: as `Agent`'s (1 for a few
-        envs on a CPU)."""
+        envs on a CPU). `trust_code`: run the code its custom tasks name (`vintix.model.load_pretrained`)."""
         resolved = resolve_checkpoint(directory)
         try:
-            return cls(load_pretrained(resolved, device), threads=threads)
+            return cls(load_pretrained(resolved, device, trust_code), threads=threads)
         except CheckpointError as error:
             raise CheckpointError(f"{error}{intact_alternative_hint(resolved)}") from error
 

@@ -191,12 +191,15 @@ def torch_device(name: str | torch.device) -> torch.device:
     return device
 
 
-def load_pretrained(directory: str | os.PathLike[str], device: str | torch.device = "cpu") -> Vintix:
-    """The model saved in `directory`, in eval mode, on `device`."""
+def load_pretrained(directory: str | os.PathLike[str], device: str | torch.device = "cpu",
+                    trust_code: bool = False) -> Vintix:
+    """The model saved in `directory`, in eval mode, on `device`. The custom tasks its config keeps are
+    registered; the code they name (env factories) runs only with `trust_code` or ``VINTIX_TRUST_CODE=1``,
+    unless you registered the same tasks yourself (`vintix.tasks.custom`)."""
     directory = Path(directory)
     device = torch_device(device)  # before reading gigabytes of weights
     meta = read_metadata(directory)
-    register_specs(meta.get("custom_tasks", {}), str(directory / CONFIG_FILE))
+    register_specs(meta.get("custom_tasks", {}), str(directory / CONFIG_FILE), trust_code)
     try:
         model = build_model(meta)
     except CheckpointError as error:  # build_model cannot name the file it was read from

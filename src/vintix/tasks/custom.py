@@ -21,9 +21,18 @@ Three ways, all of which every vintix process (every CLI command, every Ray work
 - a plug-in package: an entry point in the group ``vintix.tasks`` naming a function that registers its
   tasks (``[project.entry-points."vintix.tasks"] mine = "my_package.vintix_tasks:register"``).
 
-A checkpoint keeps the specs of the custom tasks it was trained on, and loading it registers them, so
-evaluating it needs only the env to be importable. A spec that contradicts its env (dims, an unbounded or
-non-Box action space) is an error when the env is made.
+A checkpoint keeps the specs of the custom tasks it was trained on (a dataset's task JSON too), and loading
+it registers them. A spec that contradicts its env (dims, an unbounded or non-Box action space) is an error
+when the env is made.
+
+**Trust.** Code named by a file that a run wrote, which may come from anyone (a downloaded checkpoint or
+dataset), runs only when you say so, as with Hugging Face's ``trust_remote_code``: a spec registered from such a
+file whose env is made by code (``env_factory``, or an ``env_id`` that reads ``module:EnvId``) is refused when
+its env is made, unless you registered the same task yourself (tasks file, ``VINTIX_TASKS``, Python, a
+plug-in) or trust the file's code: ``vintix --trust-code <command>``, ``VINTIX_TRUST_CODE=1`` (every process,
+Ray workers included), or ``trust_code=True`` where Python loads a checkpoint. A plain Gymnasium id (an env
+of a package you installed) needs no trust. Files you name yourself (tasks files, recipes and the
+demonstrators they name) are yours and run by design.
 """
 
 from __future__ import annotations
@@ -31,6 +40,7 @@ from __future__ import annotations
 import importlib
 import os
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +52,7 @@ from vintix.tasks import registry
 from vintix.tasks.registry import TaskSpec
 
 ENV_VARIABLE = "VINTIX_TASKS"
+TRUST_VARIABLE = "VINTIX_TRUST_CODE"
 ENTRY_POINT_GROUP = "vintix.tasks"
 SPEC_FIELDS = ("env_id", "env_factory", "obs_dim", "act_dim", "episode_length", "group", "reward_scale",
                "reference_random", "reference_expert", "split", "aliases")
@@ -156,8 +167,41 @@ def load_callable(reference: str, what: str) -> Callable[..., Any]:
     return target
 
 
+class UntrustedCodeError(TaskSpecError):
+    """A task whose spec came from a file a run wrote names code to run, and nobody said to trust it."""
+
+
+def code_trusted() -> bool:
+    """Whether code that a checkpoint's or dataset's file names may run in this process (``VINTIX_TRUST_CODE``;
+    `vintix --trust-code` sets it)."""
+    return os.environ.get(TRUST_VARIABLE, "").strip().lower() in ("1", "true", "yes")
+
+
+def code_it_runs(spec: TaskSpec) -> str | None:
+    """What code making `spec`'s env imports and calls, if any: its env_factory, or a ``module:EnvId`` id's
+    module (a plain Gymnasium id is an env of an installed package)."""
+    if spec.env_factory is not None:
+        return f"env_factory {spec.env_factory!r}"
+    if spec.env_id is not None and ":" in spec.env_id:
+        return f"env_id {spec.env_id!r} (it imports module {spec.env_id.partition(':')[0]!r})"
+    return None
+
+
+def refuse_untrusted_code(spec: TaskSpec) -> None:
+    """UntrustedCodeError where `spec` came from a run's file and names code that nobody trusted."""
+    code = code_it_runs(spec)
+    if spec.named_by is None or code is None or code_trusted():
+        return
+    raise UntrustedCodeError(
+        f"task {spec.name!r} comes from {spec.named_by}, which names code to run: {code}. vintix runs code that a "
+        "checkpoint or dataset names only when you say so: register the task yourself (a tasks file: vintix "
+        f"--tasks-file FILE, or {ENV_VARIABLE}), or, if you trust where the file came from, vintix --trust-code "
+        f"<command> ({TRUST_VARIABLE}=1; in Python, trust_code=True)")
+
+
 def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
     """`spec`'s env, capped at its episode length, checked against its dims and action bounds."""
+    refuse_untrusted_code(spec)
     env: gym.Env
     if spec.env_factory is not None:
         env = gym.wrappers.TimeLimit(load_callable(spec.env_factory, f"task {spec.name!r}: env_factory")(**kwargs),
@@ -198,11 +242,17 @@ def custom_specs(tasks: list[str]) -> dict[str, dict[str, Any]]:
     return specs
 
 
-def register_specs(specs: Mapping[str, Any], where: str) -> None:
-    """Register a checkpoint's custom task specs that this process does not know yet."""
+def register_specs(specs: Mapping[str, Any], where: str, trust_code: bool = False) -> None:
+    """Register the custom task specs that the file `where` (a checkpoint's config, a dataset's task JSON, a
+    results folder's run.json) keeps and this process does not know yet. Those are marked as named by
+    `where`, and the code they name runs only when trusted (this module's docstring), or with `trust_code`."""
     for name, fields in specs.items():
-        register_from_mapping(name, fields, where)
+        known = registry.find_task(str(name)) is not None
+        spec = register_from_mapping(name, fields, where)
+        if not known and not trust_code:
+            registry._custom[spec.name] = replace(spec, named_by=where)
 
 
-__all__ = ["TaskSpecError", "check_env_fits", "custom_specs", "load_callable", "make_custom_env", "register_specs",
+__all__ = ["TaskSpecError", "UntrustedCodeError", "check_env_fits", "code_trusted", "custom_specs", "load_callable",
+           "make_custom_env", "register_specs",
            "register_task", "register_tasks_file"]

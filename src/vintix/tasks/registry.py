@@ -19,6 +19,7 @@ import csv
 import difflib
 from collections.abc import Iterable
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from functools import cache
 from importlib import resources
 from typing import Literal
@@ -76,6 +77,9 @@ class TaskSpec:
     """custom tasks: the random policy's mean episode return, for normalized scores (None: no scores)"""
     reference_expert: float | None = None
     """custom tasks: the demonstrator's mean episode return, for normalized scores"""
+    named_by: str | None = dataclass_field(default=None, compare=False)
+    """custom tasks registered from a file a run wrote (a checkpoint's config, a dataset's task JSON), not by
+    you: that file. The code its spec names runs only when trusted (`vintix.tasks.custom.code_trusted`)."""
 
     @property
     def episode_limit(self) -> int | None:
