@@ -1009,6 +1009,50 @@ def eval_config(**fields: object) -> Callable[[], object]:
 api_error("eval", "EvalConfig(shots=0)", eval_config(shots=0), "shots=0")
 api_error("eval", "EvalConfig(seeds='3')", eval_config(seeds="3"), "seeds must be int")
 
+# Output folders (issue 47, class 2): a command never writes over its own input, into another kind of output,
+# or over files already there (another model's results, checkpoint or release) unless told --overwrite.
+@once
+def release_snapshot() -> Path:
+    from test_official_checkpoint import write_release
+
+    folder = WORK / "release"
+    folder.mkdir()
+    write_release(folder)
+    return folder
+
+
+def other_release() -> list[object]:
+    code, output = invoke("import-official", release_snapshot(), "--out", WORK / "imported")
+    assert code == 0, output
+    target = WORK / "another-release"
+    shutil.copytree(release_snapshot(), target, dirs_exist_ok=True)
+    return ["export-official", WORK / "imported", "--out", target]
+
+
+cli_error("outputs", "import-official --out its own snapshot",
+          lambda: ["import-official", release_snapshot(), "--out", release_snapshot()], "own input")
+cli_error("outputs", "import-official --out over an existing checkpoint",
+          lambda: ["import-official", release_snapshot(), "--out", model_checkpoint()], "--overwrite")
+cli_error("outputs", "import-official --out into a training run",
+          lambda: ["import-official", release_snapshot(), "--out", trained_run()], "a training run")
+cli_error("outputs", "export-official --out over another release", other_release, "--overwrite")
+cli_error("outputs", "export-official --out its own checkpoint",
+          lambda: ["export-official", model_checkpoint(), "--out", model_checkpoint()], "own input")
+cli_error("outputs", "eval --out over another checkpoint's results", lambda: [
+    "eval", "--checkpoint", "point-goal", "--tasks", "point-goal-v1", "--shots", "1", "--seeds", "1",
+    "--out", eval_results()], "--overwrite")
+
+
+def rerun_and_overwrite() -> str | None:
+    again = invoke("eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "1",
+                   "--out", eval_results())
+    forced = invoke("import-official", release_snapshot(), "--out", WORK / "imported", "--overwrite")
+    return None if again[0] == forced[0] == 0 else f"re-run: {again}; --overwrite: {forced}"
+
+
+documented("outputs", "eval re-run into its own results, and import-official --overwrite, write", rerun_and_overwrite)
+
+
 # Reports
 cli_error("report", "a missing folder", ["report", missing("results")], "no episodes.csv")
 cli_error("report", "an empty folder", lambda: ["report", empty_dir("empty4")(), "--out", WORK / "r0"],

@@ -64,9 +64,9 @@ def test_results_name_a_shipped_model_by_its_name_and_a_local_checkpoint_relativ
 
     monkeypatch.chdir(tmp_path)
     shutil.copytree(resolve_checkpoint("point-goal"), tmp_path / "models" / "mine")
-    for given, name in (("point-goal", "point-goal"), ("models/mine", "models/mine"),
-                        (str(tmp_path / "models" / "mine"), "models/mine")):
+    for run, (given, name) in enumerate((("point-goal", "point-goal"), ("models/mine", "models/mine"),
+                                         (str(tmp_path / "models" / "mine"), "models/mine"))):
         result = CliRunner().invoke(app, ["eval", "--checkpoint", given, "--tasks", "point-goal-v1", "--shots", "1",
-                                          "--seeds", "1", "--out", "results"])
+                                          "--seeds", "1", "--out", f"results-{run}"])
         assert result.exit_code == 0, result.output
-        assert json.loads((tmp_path / "results" / "run.json").read_text())["checkpoint"] == name
+        assert json.loads((tmp_path / f"results-{run}" / "run.json").read_text())["checkpoint"] == name

@@ -6,7 +6,7 @@ import fcntl
 import os
 import re
 import shutil
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -194,8 +194,29 @@ OUTPUT_KINDS: dict[str, tuple[str, Callable[[Path], bool]]] = {
     "run": ("a training run", lambda folder: (folder / "checkpoints").is_dir() or (folder / "log.csv").is_file()),
     "results": ("evaluation results", lambda folder: (folder / "episodes.csv").is_file()),
     "report": ("a report", lambda folder: (folder / "report.md").is_file()),
+    "checkpoint": ("a checkpoint", lambda folder: (folder / "model.safetensors").is_file()),
+    "release": ("a release snapshot in the authors' format", lambda folder: (folder / "model.pth").is_file()),
 }
 """What each command writes into its output folder, and how to recognize it there."""
+
+
+def check_replaceable(folder: str | os.PathLike[str], kind: str, overwrite: bool,
+                      inputs: Sequence[str | os.PathLike[str]] = (), same_output: bool = False) -> None:
+    """Raise OutputPathError where writing `kind` (a key of OUTPUT_KINDS) into `folder` would destroy something:
+    a folder that is one of the command's own `inputs` (always), a folder holding another kind of output
+    (always: the two would mix), or a non-empty folder (unless `overwrite`, or `same_output`: the command's own
+    earlier output, which a re-run may replace). The one rule every command that writes a model or results
+    follows."""
+    folder = Path(folder)
+    for source in inputs:
+        if Path(source).resolve() == folder.resolve():
+            raise OutputPathError(f"{folder} is this command's own input; writing {OUTPUT_KINDS[kind][0]} there would "
+                                  "destroy it: choose another output folder")
+    check_output_kind(folder, kind)
+    if folder.is_dir() and any(folder.iterdir()) and not (overwrite or same_output):
+        held = next((what for what, holds in OUTPUT_KINDS.values() if holds(folder)), "files")
+        raise OutputPathError(f"{folder} already holds {held}; writing {OUTPUT_KINDS[kind][0]} there would replace "
+                              "it: choose another output folder, or pass --overwrite")
 
 
 def check_output_kind(folder: str | os.PathLike[str], kind: str) -> None:

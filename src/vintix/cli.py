@@ -777,6 +777,8 @@ def train_command(
         raise _fail(error) from None
 
 
+_OVERWRITE_HELP = ("write into --out even where it holds files (never into the command's own input, nor into another "
+                   "kind of output)")
 _SNAPSHOT_HELP = ("the authors' release snapshot folder (model.pth, config.json, metadata.json), fetched by you: "
                   "hf download dunnolab/Vintix --local-dir DIR")
 
@@ -786,13 +788,14 @@ def import_official_command(
     snapshot: Annotated[Path, typer.Argument(help=_SNAPSHOT_HELP)],
     out: Annotated[Path, typer.Option(
         help="folder for our checkpoint (model.safetensors, config.json, README.md)")] = Path("vintix-official"),
+    overwrite: Annotated[bool, typer.Option(help=_OVERWRITE_HELP)] = False,
 ) -> None:
     """Import the authors' released Vintix model as one of our checkpoints (nothing is downloaded)."""
     from vintix.model.official import RELEASE_SHA256, import_official
 
     try:
         console.print(f"importing {snapshot}: reading and checking its weights", highlight=False)
-        result = import_official(snapshot, out)
+        result = import_official(snapshot, out, overwrite)
     except (VintixError, OSError) as error:
         raise _fail(error) from None
     if result.known_release:
@@ -816,13 +819,14 @@ def export_official_command(
     checkpoint: Annotated[Path, typer.Argument(help="our checkpoint directory, a training run, or a shipped model")],
     out: Annotated[Path, typer.Option(help="folder for model.pth, config.json and metadata.json")] = Path(
         "vintix-release"),
+    overwrite: Annotated[bool, typer.Option(help=_OVERWRITE_HELP)] = False,
 ) -> None:
     """Write a checkpoint in the authors' release format, loadable by their code unchanged."""
     from vintix.agent import resolve_checkpoint
     from vintix.model.official import export_official
 
     try:
-        directory = export_official(resolve_checkpoint(checkpoint), out)
+        directory = export_official(resolve_checkpoint(checkpoint), out, overwrite)
     except (VintixError, OSError) as error:
         raise _fail(error) from None
     console.print(f"wrote model.pth, config.json and metadata.json to {directory}", highlight=False)
@@ -990,6 +994,9 @@ def eval_command(
     threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
                                          "tiny ops that a second thread slows down on a busy machine")] = 1,
     ray: Annotated[str | None, typer.Option(help=_RAY_HELP)] = None,
+    overwrite: Annotated[bool, typer.Option(
+        help="write into --out even where it holds another checkpoint's results (a re-run of the same checkpoint "
+             "replaces its own without it)")] = False,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
@@ -1007,7 +1014,8 @@ def eval_command(
                             prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input)
         resolved = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(resolved, device)
-        rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, True, ray)
+        rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, True, ray,
+                               overwrite)
         summary = summarize(rows, reference)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None

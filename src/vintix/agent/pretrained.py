@@ -11,7 +11,7 @@ from importlib import resources
 from pathlib import Path
 
 from vintix.model.checkpoint import CheckpointError, is_checkpoint
-from vintix.model.official import WEIGHTS, import_official, is_official_snapshot
+from vintix.model.official import CONFIG, METADATA, WEIGHTS, file_sha256, import_official, is_official_snapshot
 from vintix.train.checkpoint import model_directory
 from vintix.userdirs import user_cache_dir
 
@@ -28,13 +28,14 @@ def shipped_models() -> list[str]:
 
 def imported_snapshot(snapshot: Path) -> Path:
     """Our checkpoint of an official release snapshot, imported once into the user cache and reused while
-    the snapshot's weights file is unchanged (same path, size and modification time)."""
-    weights = (snapshot / WEIGHTS).resolve()
-    stat = weights.stat()
-    key = hashlib.sha256(f"{weights}|{stat.st_size}|{stat.st_mtime_ns}".encode()).hexdigest()[:16]
-    directory = user_cache_dir("official") / key
+    the snapshot's files are unchanged: the cache is keyed on their contents (sha256), so an edited
+    config.json or metadata.json, or other weights, is imported afresh."""
+    digest = hashlib.sha256()
+    for name in (WEIGHTS, CONFIG, METADATA):
+        digest.update(file_sha256(snapshot / name).encode())
+    directory = user_cache_dir("official") / digest.hexdigest()[:16]
     if not is_checkpoint(directory):
-        import_official(snapshot, directory)
+        import_official(snapshot, directory, overwrite=True)  # the cache's own folder: a leftover of a failed import
     return directory
 
 

@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from vintix import cluster
 from vintix.agent import Agent
-from vintix.atomic import atomic_write_text, check_output_kind, check_output_path
+from vintix.atomic import atomic_write_text, check_output_path, check_replaceable
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
@@ -307,6 +307,14 @@ def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) ->
     return out / EPISODES_FILE, out / RUN_FILE
 
 
+def _results_of(folder: Path) -> str | None:
+    """The checkpoint whose results `folder` holds (its run.json), or None."""
+    try:
+        return str(json.loads((folder / RUN_FILE).read_text())["checkpoint"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def default_label(checkpoint: str, reward_input: str = "true") -> str:
     """A short name for a checkpoint in reports: its folder, or 'run/step-N' for a training checkpoint,
     and the rewards it was fed when not the true ones, e.g. 'ckpt (zero rewards)'."""
@@ -317,14 +325,15 @@ def default_label(checkpoint: str, reward_input: str = "true") -> str:
 
 def evaluate(
     agent: Agent, config: EvalConfig, out: Path | None = None, checkpoint: str = "", label: str | None = None,
-    progress: bool = False, ray: str | None = None,
+    progress: bool = False, ray: str | None = None, overwrite: bool = False,
 ) -> tuple[list[dict[str, Any]], list[str]]:
     """Run `config` with `agent` (on the Ray cluster at address `ray` if given, where workers load
-    `checkpoint`: see `run_episodes`); write the results under `out` if given. Returns the episode rows
-    and notes (skipped tasks, missing references) for the user."""
+    `checkpoint`: see `run_episodes`); write the results under `out` if given: a folder that is empty, or holds
+    this checkpoint's earlier results, or any with `overwrite`. Returns the episode rows and notes (skipped
+    tasks, missing references) for the user."""
     if out is not None:
         check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
-        check_output_kind(out, "results")
+        check_replaceable(out, "results", overwrite, same_output=_results_of(out) == checkpoint)
     specs, notes = select_tasks(config.tasks, list(agent.model.groups), [t.task for t in agent.model.task_norms])
     refs, missing = references([s.name for s in specs])
     started = time.time()

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from vintix.atomic import atomic_path, atomic_write_text
+from vintix.atomic import atomic_path, atomic_write_text, check_replaceable
 from vintix.model.checkpoint import (
     WEIGHTS_FILE,
     CheckpointError,
@@ -354,9 +354,12 @@ def _load_official_weights(path: Path) -> dict[str, torch.Tensor]:
     return weights
 
 
-def import_official(snapshot: str | os.PathLike[str], out: str | os.PathLike[str]) -> ImportResult:
-    """Our checkpoint in `out` of the release snapshot in `snapshot` (nothing is downloaded)."""
+def import_official(snapshot: str | os.PathLike[str], out: str | os.PathLike[str], overwrite: bool = False
+                    ) -> ImportResult:
+    """Our checkpoint in `out` of the release snapshot in `snapshot` (nothing is downloaded). `out` must be
+    empty or new, or `overwrite` given; never the snapshot itself."""
     snapshot = Path(snapshot)
+    check_replaceable(out, "checkpoint", overwrite, inputs=[snapshot])
     config = _read_json(snapshot / CONFIG)
     metadata = _read_json(snapshot / METADATA)
     model_config = config_from_official(config, str(snapshot / CONFIG))
@@ -385,10 +388,14 @@ def import_official(snapshot: str | os.PathLike[str], out: str | os.PathLike[str
                         [n.task for n in derived], renamed, [n.task for n in norms if n.obs_layout is not None])
 
 
-def export_official(checkpoint: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+def export_official(checkpoint: str | os.PathLike[str], out: str | os.PathLike[str], overwrite: bool = False
+                    ) -> Path:
     """Write the model in `checkpoint` as a release snapshot in `out` (model.pth, config.json,
-    metadata.json), loadable by the authors' code; `import_official` of it gives the same model back."""
+    metadata.json), loadable by the authors' code; `import_official` of it gives the same model back. `out`
+    must be empty or new, or `overwrite` given; never the checkpoint itself."""
     from vintix.model.checkpoint import load_pretrained
+
+    check_replaceable(out, "release", overwrite, inputs=[checkpoint])
 
     meta = read_metadata(checkpoint)
     model = load_pretrained(checkpoint)
