@@ -1053,6 +1053,43 @@ def rerun_and_overwrite() -> str | None:
 documented("outputs", "eval re-run into its own results, and import-official --overwrite, write", rerun_and_overwrite)
 
 
+# Damaged releases (issue 47, class 4): a non-finite weight or statistic is refused at import, named.
+def damaged_release(name: str, damage: Callable[[Path], object]) -> Callable[[], list[object]]:
+    def args() -> list[object]:
+        folder = WORK / f"release-{name}"
+        shutil.copytree(release_snapshot(), folder)
+        damage(folder)
+        return ["import-official", folder, "--out", WORK / f"imported-{name}"]
+    return args
+
+
+def nan_weight(folder: Path) -> None:
+    weights = torch.load(folder / "model.pth", weights_only=True)
+    key = next(k for k in weights if k.endswith("weight"))
+    weights[key][0] = float("nan")
+    torch.save(weights, folder / "model.pth")
+
+
+def edit_metadata(field: str, value: object) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        metadata = json.loads((folder / "metadata.json").read_text())
+        entry = next(iter(metadata.values()))
+        if field == "obs_std":
+            entry[field][0] = value
+        else:
+            entry[field] = value
+        (folder / "metadata.json").write_text(json.dumps(metadata))
+    return damage
+
+
+cli_error("outputs", "import-official of a release with a NaN weight", damaged_release("nan-weight", nan_weight),
+          "hold NaN or inf")
+cli_error("outputs", "import-official of a release with a NaN obs_std",
+          damaged_release("nan-std", edit_metadata("obs_std", float("nan"))), "damaged obs_std")
+cli_error("outputs", "import-official of a release with reward_scale -1e308",
+          damaged_release("scale", edit_metadata("reward_scale", -1e308)), "reward_scale")
+
+
 # Reports
 cli_error("report", "a missing folder", ["report", missing("results")], "no episodes.csv")
 cli_error("report", "an empty folder", lambda: ["report", empty_dir("empty4")(), "--out", WORK / "r0"],

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import gc
 import json
+import os
 from collections import Counter
 
 import h5py
@@ -11,6 +13,7 @@ import pytest
 import torch
 
 from vintix.data import LearningHistoryWriter, history_paths, task_directory, write_task_metadata
+from vintix.errors import DatasetError
 from vintix.train.data import (
     TrainingDataError,
     WindowBatches,
@@ -273,3 +276,20 @@ def test_a_cached_entry_from_before_validation_or_with_nan_statistics_is_not_tru
         cache.write_text(json.dumps(stale))
         with pytest.raises(TrainingDataError, match="history-0000.h5: NaN/inf in reward at row 3"):
             load(dataset, tmp_path)
+
+
+def test_a_history_damaged_in_place_after_its_statistics_were_cached_is_named_when_a_window_reads_it(dataset, tmp_path):
+    """The statistics cache is keyed on the files' size and modification time; a NaN written in place with both
+    kept (h5py, then the mtime restored) passes the cache, and must end in an error naming the file and row,
+    not in a NaN loss."""
+    load(dataset, tmp_path)  # caches the statistics
+    gc.collect()  # closes the files that load opened, so h5py may write to one
+    path = dataset / "metaworld" / "reach-v3" / "history-0000.h5"
+    stat = path.stat()
+    poison(path, "reward", 5)
+    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    data = load(dataset, tmp_path)  # the cache vouches for the file
+    windows = WindowDataset(data, window_len=30, seed=0)
+    with pytest.raises(DatasetError, match=r"history-0000.h5.*reward at row 5 is NaN or inf.*vintix data validate"):
+        for i in range(300):
+            windows[i]

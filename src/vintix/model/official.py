@@ -235,6 +235,13 @@ def _norm_from_entry(name: str, entry: Mapping[str, Any], where: str) -> TaskNor
     if len(norm.obs_mean) != dim or len(norm.obs_std) != dim:
         raise OfficialFormatError(f"{where}: task {name!r} has {len(norm.obs_mean)} obs_mean and "
                                   f"{len(norm.obs_std)} obs_std values for a {dim}-dim observation")
+    # A damaged statistic would surface later as NaN actions, blamed on a training run that never was.
+    damaged = [f"{field} {values}"[:120] for field, values in (("obs_mean", norm.obs_mean), ("obs_std", norm.obs_std))
+               if not np.isfinite(values).all()] + (["obs_std below 0"] if min(norm.obs_std, default=0) < 0 else []) + (
+        [f"reward_scale {norm.reward_scale}"] if not (np.isfinite(norm.reward_scale) and norm.reward_scale > 0) else [])
+    if damaged:
+        raise OfficialFormatError(f"{where}: task {name!r} has a damaged {'; '.join(damaged)} (finite values, "
+                                  "std >= 0 and reward_scale > 0 expected); download the snapshot again")
     spec = find_task(norm.task)
     if spec is not None and spec.obs_dim != dim:
         # Our env's observation differs from the release's: a known older layout bridges them; otherwise
@@ -351,6 +358,10 @@ def _load_official_weights(path: Path) -> dict[str, torch.Tensor]:
                                   "not the release's, download it again") from error
     if not isinstance(weights, dict) or not all(isinstance(v, torch.Tensor) for v in weights.values()):
         raise OfficialFormatError(f"{path}: a state dict (name -> tensor) expected, got {type(weights).__name__}")
+    damaged = [name for name, tensor in weights.items() if tensor.is_floating_point() and not tensor.isfinite().all()]
+    if damaged:
+        raise OfficialFormatError(f"{path}: tensor(s) {damaged[:5]} hold NaN or inf; the file is damaged, download "
+                                  "it again")
     return weights
 
 

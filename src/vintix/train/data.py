@@ -432,6 +432,7 @@ class WindowDataset(torch.utils.data.Dataset):
             # episode start's reward is the previous episode's last (`ModelConfig.last_reward`).
             first = lo - 1 if n == 0 and lo > 0 else lo
             rows = history.history.read(first, hi, demonstrator_action=task.target == "demonstrator_action")
+            check_finite_rows(history.history.path, first, rows)
             if first < lo:
                 before = {key: rows[key][0] for key in executed}
             skip = lo - first
@@ -451,6 +452,16 @@ class WindowDataset(torch.utils.data.Dataset):
             window[name] = np.concatenate([first_row[None], done[:-1]])
         window.update(task_idx=t, group=task.group)
         return window
+
+
+def check_finite_rows(path: Path, first: int, rows: dict[str, np.ndarray]) -> None:
+    """DatasetError naming `path` where rows read from it (starting at row `first`) hold NaN or inf: a file
+    changed in place after the statistics cache vouched for it, which would otherwise end as a NaN loss."""
+    for name, values in rows.items():
+        if np.issubdtype(values.dtype, np.floating) and not np.isfinite(values).all():
+            row = first + int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
+            raise DatasetError(path, f"{name} at row {row} is NaN or inf; the file changed after it was validated: "
+                                     "run `vintix data validate` on the dataset, and re-collect or remove the history")
 
 
 def collate_windows(windows: Sequence[Window]) -> Batch:
