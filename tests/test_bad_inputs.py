@@ -1090,6 +1090,15 @@ cli_error("outputs", "import-official of a release with reward_scale -1e308",
           damaged_release("scale", edit_metadata("reward_scale", -1e308)), "reward_scale")
 
 
+def deep_release(folder: Path) -> None:
+    config = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**config, "transformer_depth": 10**9}))
+
+
+# Sizes (issue 47, class 3): from the config's arithmetic, before a layer is built (10^9 of them never end).
+cli_error("sizes", "import-official of a release of 10^9 layers", damaged_release("deep", deep_release), "GiB")
+
+
 # Reports
 cli_error("report", "a missing folder", ["report", missing("results")], "no episodes.csv")
 cli_error("report", "an empty folder", lambda: ["report", empty_dir("empty4")(), "--out", WORK / "r0"],

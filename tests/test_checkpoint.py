@@ -1,6 +1,8 @@
 """Model checkpoints: safetensors + JSON round trip, and clear errors for damaged or foreign ones."""
 
 import json
+import subprocess
+import sys
 
 import pytest
 import torch
@@ -130,6 +132,25 @@ def test_a_model_json_that_asks_for_more_memory_than_the_machine_has_is_refused_
     with pytest.raises(OutOfMemoryError,
                        match="the model this checkpoint describes needs [0-9,.]+ GiB; this machine has"):
         load_pretrained(tmp_path)
+
+
+def test_a_billion_layers_are_refused_from_the_configs_arithmetic_before_one_is_built(tmp_path):
+    save_pretrained(make_model(), tmp_path)
+    meta = json.loads((tmp_path / "config.json").read_text())
+    (tmp_path / "config.json").write_text(json.dumps({**meta, "config": {**meta["config"], "n_layers": 10**9}}))
+    # In a child with a deadline: building 10^9 blocks, even on the meta device, would never end.
+    code = f"from vintix.model import load_pretrained; load_pretrained({str(tmp_path)!r})"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "OutOfMemoryError: the model this checkpoint describes needs" in result.stderr, result.stderr[-2000:]
+
+
+def test_the_memory_a_process_may_use_counts_its_address_space_limit():
+    """Clusters and containers set `ulimit -v`: a size that fits the machine but not the limit is refused too."""
+    code = ("import resource; from vintix.memory import available_memory; "
+            "resource.setrlimit(resource.RLIMIT_AS, (6 * 2**30, resource.RLIM_INFINITY)); print(available_memory())")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert 0 < int(result.stdout) < 6 * 2**30
 
 
 def test_a_model_saved_by_the_mixin_alone_keeps_what_its_checkpoint_recorded(tmp_path):

@@ -27,7 +27,7 @@ from safetensors.torch import load_file
 from vintix.atomic import atomic_save_tensors, atomic_write_text
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
-from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters
+from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters, estimated_parameters
 from vintix.tasks.custom import custom_specs, register_specs
 from vintix.tasks.layouts import ObsLayout
 
@@ -172,7 +172,8 @@ def build_model(meta: dict[str, Any]) -> Vintix:
         groups, norms = [GroupSpec(**g) for g in meta["groups"]], [task_norm_from_json(t) for t in meta["task_norms"]]
         # Twice the model: it and the weights read into it.
         return build_within_memory(lambda: Vintix(config, groups, norms), 2, "the model this checkpoint describes",
-                                   "Its config is damaged, or it needs a machine with more memory")
+                                   "Its config is damaged, or it needs a machine with more memory",
+                                   estimated_parameters(config, groups))
     except (TypeError, ValueError, KeyError, AttributeError) as error:  # a hand-edited or damaged config.json
         raise CheckpointError(f"does not describe a model this vintix can build ({error}); the checkpoint is "
                               "damaged or not vintix's") from error

@@ -641,6 +641,18 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         return self.head(group, self.backbone(x))
 
 
+def estimated_parameters(config: ModelConfig, groups: Sequence[GroupSpec]) -> int:
+    """The parameter count of a Vintix of `config` over `groups`, from the config's arithmetic alone (the
+    weight matrices; biases and norms are a few percent more): a size checked before a single layer is
+    built, since building a model of 10^9 layers, even on torch's meta device, never ends."""
+    d = config.d_model
+    per_block = 4 * d * d + 2 * d * config.mlp_dim  # attention's qkv and projection, the MLP's two layers
+    per_group = sum(
+        spec.obs_dim * config.obs_emb_dim + config.obs_emb_dim ** 2 + spec.act_dim * config.act_emb_dim
+        + config.act_emb_dim ** 2 + config.head_layers * d * d + d * spec.act_dim for spec in groups)
+    return config.n_layers * per_block + per_group
+
+
 def count_parameters(model: nn.Module) -> int:
     """Number of parameters (buffers such as normalization statistics excluded); works on 'meta'."""
     return sum(p.numel() for p in model.parameters())

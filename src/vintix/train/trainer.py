@@ -30,7 +30,7 @@ from vintix.atomic import atomic_write_text, check_output_kind, folder_lock
 from vintix.errors import DeviceError, VintixError
 from vintix.memory import build_within_memory
 from vintix.model.checkpoint import CheckpointError, load_pretrained
-from vintix.model.model import Vintix, count_parameters
+from vintix.model.model import Vintix, count_parameters, estimated_parameters
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
     best_score,
@@ -333,7 +333,8 @@ class Trainer:
         model_config = config.model_config()
         self.model = build_within_memory(lambda: Vintix(model_config, self.data.groups, self.data.task_norms), 4,
                                          f"training the {config.model} preset with model_overrides "
-                                         f"{config.model_overrides}", "Choose a smaller preset or model_overrides")
+                                         f"{config.model_overrides}", "Choose a smaller preset or model_overrides",
+                                         estimated_parameters(model_config, self.data.groups))
         self.step, self.tokens = 0, 0
         resume = resumable_checkpoint(self.out, note=print if self.dist.is_main else None)
         if resume is not None:
