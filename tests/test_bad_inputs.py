@@ -1204,7 +1204,10 @@ def probe_code() -> Path:
     folder.mkdir()
     (folder / "trust_probe.py").write_text(
         "from pathlib import Path\n\nimport vintix\n\n\ndef make(**kwargs):\n"
-        "    Path(__file__).with_name('ran').touch()\n    return vintix.make_env('reach-v3', seed=0)\n")
+        "    Path(__file__).with_name('ran').touch()\n    return vintix.make_env('reach-v3', seed=0)\n\n\n"
+        "def broken(*args, **kwargs):\n    raise RuntimeError('boom in user code')\n\n\n"
+        "class ActsBroken:\n    def __init__(self, task):\n        pass\n\n"
+        "    def act(self, observations, envs):\n        raise ZeroDivisionError('boom in act')\n")
     sys.path.insert(0, str(folder))
     return folder
 
@@ -1278,6 +1281,77 @@ def dataset_naming_code() -> object:
 api_error("trust", "make_env of a task a dataset's task JSON names, with a factory", dataset_naming_code,
           "VINTIX_TRUST_CODE=1")
 
+
+# Plug-ins (issue 47, class 6): code vintix is told to call that fails ends in one line naming it and the fix.
+def plugin_task(name: str, **fields: object) -> Callable[[], object]:
+    def call() -> object:
+        import vintix
+
+        probe_code()
+        vintix.register_task(name, obs_dim=39, act_dim=4, episode_length=500, **fields)
+        return vintix.make_env(name, seed=0)
+    return call
+
+
+def plugin_demonstrator(source: str) -> Callable[[], object]:
+    def call() -> object:
+        from vintix.demonstrators.base import external_demonstrator
+
+        probe_code()
+        demonstrator = external_demonstrator("reach-v3", source)
+        import vintix
+
+        env = vintix.make_env("reach-v3", seed=0)
+        return demonstrator.act(env.reset()[0][None], [env])
+    return call
+
+
+@once
+def sac_zip() -> Path:
+    import gymnasium as gym
+    from stable_baselines3 import SAC
+
+    path = WORK / "pendulum-sac.zip"
+    SAC("MlpPolicy", gym.make("Pendulum-v1"), learning_starts=0, buffer_size=100).save(path)
+    path.chmod(0o600)
+    return path
+
+
+def collect_with_demonstrator(source: str) -> list[object]:
+    probe_code()
+    recipe = WORK / f"recipe-{source.replace(':', '-')}.yaml"
+    recipe.write_text(json.dumps({"tasks": {"reach-v3": {"histories": 1, "steps": 20, "demonstrator": source}}}))
+    return ["collect", "--recipe", recipe, "--out", WORK / f"data-{source.replace(':', '-')}"]
+
+
+api_error("plugins", "a task whose env factory raises", plugin_task("plugin-broken", env_factory="trust_probe:broken"),
+          "env_factory 'trust_probe:broken' raised RuntimeError: boom in user code")
+api_error("plugins", "a custom task in a built-in group with other dims", lambda: __import__("vintix").register_task(
+    "plugin-wide", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=200, group="metaworld"),
+    "group 'metaworld' has obs_dim 39")
+api_error("plugins", "a demonstrator whose constructor raises", plugin_demonstrator("trust_probe:broken"),
+          "demonstrator 'trust_probe:broken' raised RuntimeError")
+cli_error("plugins", "collect with a demonstrator whose act raises", lambda: collect_with_demonstrator(
+    "trust_probe:ActsBroken"), "the demonstrator's act raised ZeroDivisionError")
+api_error("plugins", "sb3:PPO: on a SAC model file", lambda: plugin_demonstrator(f"sb3:PPO:{sac_zip()}")(),
+          "Name the algorithm it was saved with")
+api_error("plugins", "sbx: without sbx installed", lambda: plugin_demonstrator(f"sbx:SAC:{sac_zip()}")(),
+          "pip install sbx-rl")
+
+
+def clash_with_a_tasks_file() -> object:
+    from vintix.tasks.custom import register_specs, register_tasks_file
+
+    path = WORK / "clash-tasks.yaml"
+    path.write_text(json.dumps({"tasks": {"plugin-clash": {"env_id": "Pendulum-v1", "obs_dim": 3, "act_dim": 1,
+                                                           "episode_length": 200}}}))
+    register_tasks_file(path)
+    return register_specs({"plugin-clash": {"env_id": "Pendulum-v1", "obs_dim": 3, "act_dim": 1,
+                                            "episode_length": 100}}, "some-checkpoint/config.json")
+
+
+api_error("plugins", "a checkpoint's task whose name a tasks file's task has", clash_with_a_tasks_file,
+          "is already task 'plugin-clash' (from tasks file")
 
 def python_dash_m() -> str | None:
     env = child_env()

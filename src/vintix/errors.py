@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 
 class VintixError(Exception):
@@ -41,3 +45,19 @@ class OutputPathError(VintixError, OSError):
 
 class DeviceError(VintixError, ValueError):
     """A torch device name that is unknown, or that this machine does not have (CUDA without a GPU)."""
+
+
+class PluginError(VintixError, RuntimeError):
+    """Code vintix was told to call (a task's env factory, a demonstrator, a model file's library) raised."""
+
+
+def call_plugin(what: str, fix: str, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+    """``function(*args, **kwargs)``, where `function` is code of the user's (or a library's) that vintix calls:
+    an exception it raises becomes one PluginError line that names `what` raised what, and `fix`, instead of a
+    traceback from deep inside the pipeline. vintix's own errors pass through."""
+    try:
+        return function(*args, **kwargs)
+    except VintixError:
+        raise
+    except Exception as error:  # noqa: BLE001 - any exception of foreign code is named, not swallowed
+        raise PluginError(f"{what} raised {type(error).__name__}: {error}. {fix}") from error

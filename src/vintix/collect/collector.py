@@ -43,7 +43,7 @@ from vintix.collect.noise import NoiseSchedule, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, UNFINISHED_FILES, history_bytes
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
-from vintix.errors import VintixError
+from vintix.errors import VintixError, call_plugin
 from vintix.fields import check_field_types
 from vintix.interrupt import sigterm_as_ctrl_c
 from vintix.memory import ensure_fits
@@ -314,7 +314,8 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
             for i, rng in enumerate(rngs):
                 block.noise[:size, i] = rng.uniform(low, high, size=(size, len(low)))
         # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
-        proposal = np.clip(demonstrator.act(observations, envs), low, high)
+        proposal = np.clip(call_plugin(f"{label}: the demonstrator's act", "Fix the demonstrator",
+                                       demonstrator.act, observations, envs), low, high)
         target = proposal if learner is None else np.clip(learner.expert_act(observations, envs), low, high)
         # float32 before stepping, so the action stored is exactly the action executed.
         actions = mix_action(proposal, epsilons[t][:, None], block.noise[k]).astype(np.float32)

@@ -12,7 +12,7 @@ from typing import Any, Protocol, cast
 import gymnasium as gym
 import numpy as np
 
-from vintix.errors import VintixError
+from vintix.errors import MissingDependencyError, VintixError, call_plugin
 from vintix.tasks import get_task
 from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS
 
@@ -152,14 +152,22 @@ def external_demonstrator(task: str, source: str) -> Demonstrator:
             raise VintixError(f"demonstrator {source!r}: a model file reads {library}:ALGO:PATH, e.g. {library}:SAC:"
                               "runs/pendulum/model.zip")
         refuse_untrusted(Path(path))
-        module = importlib.import_module(_MODEL_LIBRARIES[library])
+        try:
+            module = importlib.import_module(_MODEL_LIBRARIES[library])
+        except ImportError as error:
+            raise MissingDependencyError(
+                f"demonstrator {source!r} needs {_MODEL_LIBRARIES[library]}, which is not installed here ({error}); "
+                f"pip install {'sbx-rl' if library == 'sbx' else 'stable-baselines3'}") from error
         if not hasattr(module, algorithm):
             raise VintixError(f"demonstrator {source!r}: {_MODEL_LIBRARIES[library]} has no algorithm {algorithm!r}")
-        model = getattr(module, algorithm).load(path, device="cpu")
+        model = call_plugin(f"task {task!r}: demonstrator {source!r}: {algorithm}.load", f"Is {path} a {algorithm} "
+                            f"model saved by {_MODEL_LIBRARIES[library]}? Name the algorithm it was saved with",
+                            getattr(module, algorithm).load, path, device="cpu")
         return ModelFileDemonstrator(model)
     from vintix.tasks.custom import load_callable
 
-    demonstrator = load_callable(source, f"task {task!r}: demonstrator")(task)
+    demonstrator = call_plugin(f"task {task!r}: demonstrator {source!r}", "Fix it: the error is in its code",
+                               load_callable(source, f"task {task!r}: demonstrator"), task)
     if not callable(getattr(demonstrator, "act", None)):
         raise VintixError(f"demonstrator {source!r} returned {type(demonstrator).__name__}, which has no "
                           "act(observations, envs) method (the Demonstrator protocol)")

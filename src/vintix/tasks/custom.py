@@ -47,7 +47,7 @@ from typing import Any
 import gymnasium as gym
 import yaml
 
-from vintix.errors import VintixError
+from vintix.errors import PluginError, VintixError, call_plugin
 from vintix.tasks import registry
 from vintix.tasks.registry import TaskSpec
 
@@ -70,7 +70,25 @@ def register_task(
     aliases: tuple[str, ...] | list[str] = (),
 ) -> TaskSpec:
     """Add a task of your own to the registry (see this module's docstring); returns its spec. Registering
-    the same spec again is a no-op; another spec under a taken name or alias is a TaskSpecError."""
+    the same spec again is a no-op (and vouches for its code: `code_trusted`); another spec under a taken name
+    or alias is a TaskSpecError, as is a group whose other tasks have other dims."""
+    spec = build_spec(name, obs_dim=obs_dim, act_dim=act_dim, episode_length=episode_length, env_id=env_id,
+                      env_factory=env_factory, group=group, reward_scale=reward_scale,
+                      reference_random=reference_random, reference_expert=reference_expert, split=split,
+                      aliases=aliases)
+    check_fits_registry(spec)
+    registry._custom[name] = spec
+    return spec
+
+
+def build_spec(
+    name: str, *, obs_dim: int, act_dim: int, episode_length: int, env_id: str | None = None,
+    env_factory: str | None = None, group: str | None = None, reward_scale: float = 1.0,
+    reference_random: float | None = None, reference_expert: float | None = None, split: str = "train",
+    aliases: tuple[str, ...] | list[str] = (), source: str | None = None,
+) -> TaskSpec:
+    """A custom task's spec, checked against itself (not yet against the registry); `source`: the file it came
+    from, named in errors."""
     if (env_id is None) == (env_factory is None):
         raise TaskSpecError(f"task {name!r}: give one of env_id (a Gymnasium id) and env_factory (module:callable)")
     if env_factory is not None and ":" not in env_factory:
@@ -85,21 +103,37 @@ def register_task(
             reference_random is not None and reference_expert is not None and not reference_expert > reference_random):
         raise TaskSpecError(f"task {name!r}: give both reference_random and reference_expert (expert above random) "
                             f"or neither; got {reference_random} and {reference_expert}")
-    spec = TaskSpec(
+    return TaskSpec(
         name=name, domain="custom", group=group or name, obs_dim=obs_dim, act_dim=act_dim,
         episode_length=episode_length, reward_scale=float(reward_scale), split=split,  # type: ignore[arg-type]
         aliases=tuple(aliases), paper_random=None, paper_expert=None, paper_vintix_normalized=None,
         paper_history_length=0, paper_histories=0, env_id=env_id, env_factory=env_factory,
         reference_random=None if reference_random is None else float(reference_random),
-        reference_expert=None if reference_expert is None else float(reference_expert),
+        reference_expert=None if reference_expert is None else float(reference_expert), source=source,
     )
+
+
+def _from(spec: TaskSpec) -> str:
+    return f" (from {spec.source})" if spec.source else ""
+
+
+def check_fits_registry(spec: TaskSpec) -> None:
+    """TaskSpecError where `spec` takes a name or alias another spec has, or joins a group whose tasks have
+    other dims (they share encoders and a head); both errors say where the other spec came from."""
     taken = registry._names_and_aliases()
-    for label in (name, *spec.aliases):
+    for label in (spec.name, *spec.aliases):
         owner = taken.get(label)
         if owner is not None and registry._tasks()[owner] != spec:
-            raise TaskSpecError(f"task {name!r}: the name {label!r} is already task {owner!r}; choose another")
-    registry._custom[name] = spec
-    return spec
+            other = registry._tasks()[owner]
+            whose = " (a task of the package)" if other.domain != "custom" else _from(other)
+            raise TaskSpecError(f"task {spec.name!r}{_from(spec)}: the name {label!r} is already task {owner!r}"
+                                f"{whose}; choose another name")
+    member = next((t for t in registry._tasks().values() if t.group == spec.group and t.name != spec.name), None)
+    if member is not None and (member.obs_dim, member.act_dim) != (spec.obs_dim, spec.act_dim):
+        raise TaskSpecError(
+            f"task {spec.name!r}{_from(spec)}: group {spec.group!r} has obs_dim {member.obs_dim} and act_dim "
+            f"{member.act_dim} (task {member.name!r}{_from(member)}), this task {spec.obs_dim} and {spec.act_dim}: "
+            "tasks of a group share encoders and a head; give it its own group")
 
 
 def spec_to_json(spec: TaskSpec) -> dict[str, Any]:
@@ -109,17 +143,25 @@ def spec_to_json(spec: TaskSpec) -> dict[str, Any]:
     return data
 
 
-def register_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> TaskSpec:
-    """`register_task` from a tasks file's (or a checkpoint's) entry; unknown fields are an error."""
+def spec_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> TaskSpec:
+    """`build_spec` from a tasks file's (or a checkpoint's) entry; unknown fields are an error."""
     if not isinstance(fields, Mapping):
         raise TaskSpecError(f"{where}: task {name!r} must be a mapping of {', '.join(SPEC_FIELDS)}")
     unknown = sorted(set(fields) - set(SPEC_FIELDS))
     if unknown:
         raise TaskSpecError(f"{where}: task {name!r} has unknown field(s) {unknown}; known: {', '.join(SPEC_FIELDS)}")
     try:
-        return register_task(str(name), **dict(fields))
+        return build_spec(str(name), **dict(fields), source=where)
     except TypeError as error:  # a missing required field
         raise TaskSpecError(f"{where}: task {name!r}: {error}") from error
+
+
+def register_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> TaskSpec:
+    """`register_task` from a tasks file's entry (the user's own: its code is trusted)."""
+    spec = spec_from_mapping(name, fields, where)
+    check_fits_registry(spec)
+    registry._custom[spec.name] = spec
+    return spec
 
 
 def register_tasks_file(path: str | os.PathLike[str]) -> list[TaskSpec]:
@@ -204,14 +246,21 @@ def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
     refuse_untrusted_code(spec)
     env: gym.Env
     if spec.env_factory is not None:
-        env = gym.wrappers.TimeLimit(load_callable(spec.env_factory, f"task {spec.name!r}: env_factory")(**kwargs),
-                                     spec.episode_length)
+        factory = load_callable(spec.env_factory, f"task {spec.name!r}: env_factory")
+        made = call_plugin(f"task {spec.name!r}{_from(spec)}: its env_factory {spec.env_factory!r}",
+                           "Fix the factory: the error is in its code", factory, **kwargs)
+        env = gym.wrappers.TimeLimit(made, spec.episode_length)
     else:
         assert spec.env_id is not None  # register_task requires one of the two
         try:
-            env = gym.make(spec.env_id, max_episode_steps=spec.episode_length, **kwargs)
-        except gym.error.Error as error:
-            raise TaskSpecError(f"task {spec.name!r}: gymnasium cannot make env {spec.env_id!r} ({error})") from error
+            env = call_plugin(f"task {spec.name!r}{_from(spec)}: gymnasium's make({spec.env_id!r})",
+                              "Fix the env (or its registration)", gym.make, spec.env_id,
+                              max_episode_steps=spec.episode_length, **kwargs)
+        except PluginError as error:
+            if isinstance(error.__cause__, gym.error.Error):
+                raise TaskSpecError(f"task {spec.name!r}: gymnasium cannot make env {spec.env_id!r} "
+                                    f"({error.__cause__})") from error.__cause__
+            raise
     check_env_fits(spec, env)
     return env
 
@@ -247,10 +296,10 @@ def register_specs(specs: Mapping[str, Any], where: str, trust_code: bool = Fals
     results folder's run.json) keeps and this process does not know yet. Those are marked as named by
     `where`, and the code they name runs only when trusted (this module's docstring), or with `trust_code`."""
     for name, fields in specs.items():
-        known = registry.find_task(str(name)) is not None
-        spec = register_from_mapping(name, fields, where)
-        if not known and not trust_code:
-            registry._custom[spec.name] = replace(spec, named_by=where)
+        spec = spec_from_mapping(name, fields, where)
+        check_fits_registry(spec)
+        if registry.find_task(spec.name) is None:  # a known one stays as registered (and as trusted) before
+            registry._custom[spec.name] = replace(spec, named_by=None if trust_code else where)
 
 
 __all__ = ["TaskSpecError", "UntrustedCodeError", "check_env_fits", "code_trusted", "custom_specs", "load_callable",

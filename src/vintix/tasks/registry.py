@@ -77,6 +77,9 @@ class TaskSpec:
     """custom tasks: the random policy's mean episode return, for normalized scores (None: no scores)"""
     reference_expert: float | None = None
     """custom tasks: the demonstrator's mean episode return, for normalized scores"""
+    source: str | None = dataclass_field(default=None, compare=False)
+    """custom tasks: the file that registered them (a tasks file, a checkpoint's config...), named in errors;
+    None for `register_task` from Python"""
     named_by: str | None = dataclass_field(default=None, compare=False)
     """custom tasks registered from a file a run wrote (a checkpoint's config, a dataset's task JSON), not by
     you: that file. The code its spec names runs only when trusted (`vintix.tasks.custom.code_trusted`)."""
