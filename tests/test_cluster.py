@@ -107,3 +107,18 @@ def test_a_cluster_address_where_nothing_runs_is_named_not_retried_for_minutes(t
     # Ray's own lookup of a recorded cluster names this machine by its network address, not 127.0.0.1.
     assert re.search(rf"no Ray cluster answers at [\d.]+:{port} {re.escape(named)}", " ".join(result.output.split()))
     assert not (tmp_path / "out").exists()
+
+
+def test_an_address_space_limit_ends_in_a_named_error_not_a_crash_inside_ray(tmp_path):
+    """Under `ulimit -v` (clusters and containers set one) Ray cannot map its object store: it aborted in C++
+    or its workers never started. `--ray` refuses first, in seconds, naming the limit."""
+    pytest.importorskip("ray")
+    import subprocess
+
+    command = (f"ulimit -v 8000000; {sys.executable} -m vintix eval --checkpoint point-goal --tasks point-goal-v1 "
+               f"--shots 1 --seeds 1 --ray auto --out {tmp_path / 'results'}")
+    result = subprocess.run(["bash", "-c", command], capture_output=True, text=True, timeout=300)
+    assert result.returncode != 0
+    output = " ".join((result.stdout + result.stderr).split())
+    assert "address-space limit (ulimit -v 8000000)" in output, output[-2000:]
+    assert not (tmp_path / "results").exists()

@@ -10,6 +10,7 @@ first use, never when vintix is imported.
 from __future__ import annotations
 
 import os
+import resource
 import socket
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
@@ -30,6 +31,10 @@ R = TypeVar("R")
 
 class ClusterUnreachableError(VintixError):
     """Nothing answers at the Ray cluster address given (by --ray or RAY_ADDRESS)."""
+
+
+class ClusterStartError(VintixError):
+    """Ray came up, but its workers do not: no task would ever run."""
 
 
 def import_ray() -> ModuleType:
@@ -55,6 +60,7 @@ def connect(address: str) -> None:
     ray = import_ray()
     if ray.is_initialized():
         return
+    refuse_address_space_limit(address)
     if address != "auto":
         check_reachable(address, "--ray", "start it (ray start --head) or correct the address")
     elif os.environ.get("RAY_ADDRESS"):
@@ -70,6 +76,40 @@ def connect(address: str) -> None:
             check_reachable(recorded, "the latest `ray start` on this machine",
                             "start it again, or run `ray stop` to forget it so that --ray auto starts a local instance")
     ray.init(address=None if address == "auto" else address)
+    check_workers_start(ray)
+
+
+def refuse_address_space_limit(address: str) -> None:
+    """ClusterStartError where this process has an address-space limit (`ulimit -v`, as clusters and containers
+    set) and would start or join Ray on this machine: Ray maps its shared object store into every process,
+    which such a limit refuses, and Ray then aborts in C++ (or its workers never start) instead of failing.
+    A Ray client (``ray://``) maps no store here."""
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and not address.startswith("ray://"):
+        raise ClusterStartError(
+            f"this process runs under an address-space limit (ulimit -v {soft // 1024}), under which Ray cannot map "
+            "its object store: lift it for this command (ulimit -v unlimited), connect as a Ray client (--ray "
+            "ray://HOST:10001), or run without --ray")
+
+
+WORKER_START_SECONDS = 60.0
+"""How long a cluster may take to run a first, empty task before `connect` gives up on it"""
+
+
+def _alive() -> bool:
+    return True
+
+
+def check_workers_start(ray: ModuleType, timeout: float = WORKER_START_SECONDS) -> None:
+    """Raise ClusterStartError unless an empty task runs within `timeout` seconds: where Ray's workers cannot
+    start (an address-space limit, `ulimit -v`, as clusters and containers set, is the usual cause), every
+    task would wait forever."""
+    try:
+        ray.get(ray.remote(_alive).options(num_cpus=0).remote(), timeout=timeout)
+    except ray.exceptions.GetTimeoutError:
+        ray.shutdown()
+        raise ClusterStartError(f"Ray started, but no worker ran an empty task within {timeout:.0f} s: see Ray's logs "
+                                "(/tmp/ray/session_latest/logs) for why its workers do not start") from None
 
 
 def check_reachable(address: str, source: str, fix: str, timeout: float = 10.0) -> None:
