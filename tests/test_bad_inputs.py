@@ -271,6 +271,14 @@ def float64_history(folder: Path) -> None:
         f["0-127"].create_dataset("reward", data=reward.astype(np.float64))
 
 
+def bytes_reward_history(folder: Path) -> None:
+    """A history whose reward was stored as byte strings (a writer that formatted numbers as text)."""
+    with h5py.File(folder / "history-0001.h5", "r+") as f:
+        reward = f["0-127/reward"][()]
+        del f["0-127/reward"]
+        f["0-127"].create_dataset("reward", data=np.array([f"{r:.3f}".encode() for r in reward]))
+
+
 def unchecksummed_copy(folder: Path) -> None:
     """Rewrite a history the way the published dataset stores it: no chunks, no checksums."""
     path = folder / "history-0000.h5"
@@ -319,6 +327,7 @@ DATA.update({
     "json-list": damaged_data("json-list", lambda f: (f / "reach-v3.json").write_text("[1, 2]")),
     "json-not-utf8": damaged_data("json-not-utf8", lambda f: (f / "reach-v3.json").write_bytes(b"\xff\xfe{")),
     "float64-reward": damaged_data("float64-reward", float64_history),
+    "bytes-reward": damaged_data("bytes-reward", bytes_reward_history),
     "not-hdf5": damaged_data("not-hdf5", lambda f: (f / "history-0001.h5").write_text("just text")),
     "published-layout": damaged_data("published-layout", unchecksummed_copy),
     "json-only-task": damaged_data("json-only-task", lambda f: (f.parent / "push-v3").mkdir()
@@ -634,6 +643,7 @@ DAMAGE_NAMES = {
     "foreign-entry": ("'notes' is not a step group",) * 2, "discrete-json": ("action_type",) * 2,
     "text-dims-json": ("action_dim must be a positive integer", None), "json-list": ("needs keys", None),
     "json-not-utf8": ("not valid JSON",) * 2, "float64-reward": ("reward is float64",) * 2,
+    "bytes-reward": ("reward is |S",) * 2,
     "not-hdf5": ("history-0001.h5",) * 2, "nan-demonstrator-action": ("NaN/inf in demonstrator_action",) * 2,
     "demonstrator-action-in-one-group": ("groups disagree on their demonstrator-action dataset",) * 2,
     "declares-a-billion-rows": ("declares 1,000,000,000 rows but stores no data",) * 2,
@@ -1352,6 +1362,32 @@ def clash_with_a_tasks_file() -> object:
 
 api_error("plugins", "a checkpoint's task whose name a tasks file's task has", clash_with_a_tasks_file,
           "is already task 'plugin-clash' (from tasks file")
+
+# The rest of the old list (issue 47, class 8).
+def minari_root() -> None:
+    os.environ["MINARI_DATASETS_PATH"] = str(WORK / "minari" / "datasets")  # never the user's own
+
+
+cli_error("data", "export-minari with a dataset id that climbs out of Minari's root", lambda: [
+    "data", "export-minari", clean_data(), "--dataset-id", "../../escaped/x-v0"], "expected [namespace/]name-vN",
+    setup=minari_root, after=lambda: "a folder was made outside Minari's root" if (WORK / "escaped").exists() else None)
+
+
+@once
+def results_relabelled() -> Path:
+    """Results of zero rewards fed back whose run.json was edited to say true ones."""
+    folder = WORK / "results-relabelled"
+    code, output = invoke("eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "2", "--seeds",
+                          "1", "--reward-input", "zero", "--out", folder)
+    assert code == 0, output
+    run = json.loads((folder / "run.json").read_text())
+    run["config"]["reward_input"] = "true"
+    (folder / "run.json").write_text(json.dumps(run))
+    return folder
+
+
+cli_error("report", "run.json that contradicts its episodes' reward_input column", lambda: [
+    "report", results_relabelled(), "--out", WORK / "report-relabelled"], "mixes runs fed different rewards")
 
 def python_dash_m() -> str | None:
     env = child_env()

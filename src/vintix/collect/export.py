@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,16 @@ from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, action_box, find_task, gymnasium_id, make_env
 
 
+def check_dataset_id(dataset_id: str) -> None:
+    """VintixError unless `dataset_id` reads as Minari's ``[namespace/]name-vN``, each part a plain name: a part
+    such as ``..`` would make Minari create folders outside its datasets root before it refused the id."""
+    parts = dataset_id.split("/")
+    if any(not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", part) or set(part) == {"."} for part in parts) \
+            or not re.search(r"-v\d+$", parts[-1]):
+        raise VintixError(f"Minari dataset id {dataset_id!r}: expected [namespace/]name-vN, each part letters, digits, "
+                          "'_', '-' or '.', e.g. vintix/reach-v3-v0")
+
+
 def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | None = None,
                   description: str | None = None, author: str | None = None, author_email: str | None = None,
                   code_permalink: str | None = None, overwrite: bool = False) -> minari.MinariDataset:
@@ -41,6 +52,7 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
     holds several; `author`, `author_email` and `code_permalink` go into Minari's metadata. A dataset of that
     id already there is an error, or with `overwrite` is replaced (only once the new one's histories have been
     read). Returns the dataset, loaded back by Minari."""
+    check_dataset_id(dataset_id)
     data = _one_task(root, task)
     existing = dataset_id in minari.list_local_datasets()
     if existing and not overwrite:

@@ -60,6 +60,8 @@ DTYPES: dict[str, np.dtype] = {
     "step_num": np.dtype(np.int32),
 }
 """Dataset name in a group -> official dtype."""
+NUMERIC_KINDS = "fiub"
+"""numpy dtype kinds a step dataset may be stored as and still be read (cast to the official dtype)"""
 
 FIELDS: dict[str, str] = {
     "observation": "proprio_observation",
@@ -711,6 +713,9 @@ class LearningHistory:
                 lo, hi = max(start, g.start) - g.start, min(stop, g.stop) - g.start
                 group = self._file[g.name]
                 for key, disk in fields.items():
+                    if group[disk].dtype.kind not in NUMERIC_KINDS:  # bytes or strings would be parsed, or crash
+                        raise DatasetError(self.path, f"{disk} in group {g.name!r} is stored as {group[disk].dtype}, "
+                                           "not as numbers; run `vintix data validate` and re-collect the history")
                     parts[key].append(group[disk][lo:hi])
         # Cast so callers always get the official dtypes, even from a file that validation would flag.
         return {key: np.concatenate(parts[key]).astype(official_dtype(disk), copy=False)

@@ -23,6 +23,7 @@ from vintix.data.hdf5 import (
     FINAL_OBSERVATION,
     HISTORY_END,
     MAX_GROUP_ROWS,
+    NUMERIC_KINDS,
     TERMINATED,
     TRUNCATED,
     DatasetError,
@@ -154,6 +155,8 @@ def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None =
             if group[key].dtype != official_dtype(key):
                 where = f"{key} is {group[key].dtype} in group {name!r}, expected {official_dtype(key)}"
                 log.add(f"dtype {key}", where, rewrite)
+        if any(group[key].dtype.kind not in NUMERIC_KINDS for key in [*DTYPES, *real_valued[3:]]):
+            continue  # values that are not numbers (bytes, strings) cannot be checked as numbers; reported above
         for key in real_valued:
             bad_rows = ~np.isfinite(group[key][()]).reshape(rows, -1).all(axis=1)
             if bad_rows.any():

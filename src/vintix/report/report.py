@@ -100,6 +100,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     # variant -> run (seed, prompt) -> shot -> (normalized score, success flag or NaN)
     runs: dict[str, dict[tuple[int, str], dict[int, tuple[float, float]]]] = defaultdict(lambda: defaultdict(dict))
     domains, tasks, refs, missing = {}, {}, {}, []
+    fed: set[str] = set()  # the reward_input column's values
     with episodes.open() as f:
         reader = csv.DictReader(f)
         lacking = sorted(EPISODE_COLUMNS - set(reader.fieldnames or []))
@@ -123,6 +124,8 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
                 by_shot[shot] = float(ref.normalize(episode_return)), succeeded
             except (ValueError, TypeError) as error:  # a hand-edited or foreign table
                 raise VintixError(f"{episodes}, line {line}: {error}; {rewrite}") from error
+            if row.get("reward_input"):
+                fed.add(row["reward_input"])
             domains[variant] = _variant(f"{row['domain']} {row['split']}", row["variation"])
             tasks[variant] = task
     if line == 1:
@@ -142,9 +145,19 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
         if not np.isnan(both[..., 1]).any():
             success[variant] = both[..., 1]
     notes = [f"{folder}: " + missing_reference_note(missing, table)] if missing else []
-    reward_input = run.get("config", {}).get("reward_input", "true")
+    reward_input = _reward_input(episodes, fed, run)
     return Results(run.get("label") or folder.name, folder, run, scores, domains, tasks, success, seeds,
                    reward_input), notes
+
+
+def _reward_input(episodes: Path, fed: set[str], run: dict[str, Any]) -> str:
+    """What the folder's runs were fed back: the episodes' own column, which must hold one value and agree with
+    run.json; run.json alone for tables from before the column ('true' before either existed)."""
+    said = run.get("config", {}).get("reward_input")
+    if len(fed) > 1 or (fed and said is not None and fed != {said}):
+        raise VintixError(f"{episodes}: its reward_input column holds {sorted(fed)}, its run.json says {said!r}: the "
+                          "folder mixes runs fed different rewards; evaluate each into a folder of its own")
+    return next(iter(fed), said or "true")
 
 
 def _checked_episode(row: dict[str, str]) -> tuple[float, int, float]:
