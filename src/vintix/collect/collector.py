@@ -466,6 +466,12 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
         # on a queue nobody feeds, and they remove their unfinished files.
         with multiprocessing.Pool(workers, initializer=_start_worker) as pool:
             pool.map(_collect_batch_in_worker, [(*job, n % workers) for n, job in enumerate(jobs)], chunksize=1)
+            # The normal end lets each worker take its sentinel and exit. Only an abnormal one goes through the
+            # block's terminate(), which races the idle workers for the task queue's lock (they hold it while
+            # waiting for work) and signals them mid-wait: the suspect in a collection that wrote every history
+            # and then did not exit (seen once, under load; not reproduced).
+            pool.close()
+            pool.join()
     else:
         for job in jobs:
             collect_batch(*job)
