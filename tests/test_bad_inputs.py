@@ -1389,6 +1389,26 @@ def results_relabelled() -> Path:
 cli_error("report", "run.json that contradicts its episodes' reward_input column", lambda: [
     "report", results_relabelled(), "--out", WORK / "report-relabelled"], "mixes runs fed different rewards")
 
+# The agent never changes the experiment silently (issue 47, class 5).
+def predict_after(first: dict[str, object], then: dict[str, object], envs: int = 1) -> Callable[[], object]:
+    def call() -> object:
+        import vintix
+
+        agent = vintix.Agent.from_pretrained(model_checkpoint())
+        agent.reset(["reach-v3"] * envs)
+        obs = np.zeros(39) if envs == 1 else np.zeros((envs, 39))
+        agent.predict(obs, **first)
+        return agent.predict(obs, **then)
+    return call
+
+
+api_error("agent", "predict with no reward mid-episode (it would feed zeros)",
+          predict_after({}, {"reward": None, "episode_start": False}), "reward is None")
+api_error("agent", "predict with one reward for two envs", predict_after({}, {"reward": 0.5, "episode_start": [False,
+          False]}, envs=2), "reward has 1 value")
+api_error("agent", "predict with three episode_start flags for two envs", predict_after(
+    {}, {"reward": [0.5, 0.5], "episode_start": [False, False, True]}, envs=2), "episode_start has 3 value")
+
 def python_dash_m() -> str | None:
     env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "industrial_benchmark"],
