@@ -23,7 +23,7 @@ import sys
 import textwrap
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,9 +42,20 @@ WORK = Path()
 
 
 @pytest.fixture(scope="module", autouse=True)
-def workspace(tmp_path_factory: pytest.TempPathFactory) -> None:
+def workspace(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The module's folder; the cases register tasks, put a module on sys.path and set variables, which the
+    modules after this one must not see."""
+    from vintix.tasks import registry
+
     global WORK
     WORK = tmp_path_factory.mktemp("bad-inputs")
+    custom, path, environ = dict(registry._custom), list(sys.path), dict(os.environ)
+    yield
+    registry._custom.clear()
+    registry._custom.update(custom)
+    sys.path[:] = path
+    os.environ.clear()
+    os.environ.update(environ)
 
 
 # A model small enough to train a few steps in a second.
