@@ -506,8 +506,8 @@ class Agent:
         else:
             reading = (skip & last_reward) | ~(starts | skip)
         if reward is None and reading.any():
-            where = "at an episode start, where this model reads the previous episode's last" if last_reward else \
-                "mid-episode, where the model reads the"
+            where = ("mid-episode or at an episode start (there this model reads the previous episode's last reward), "
+                     "where the model reads the") if last_reward else "mid-episode, where the model reads the"
             raise AgentInputError(
                 f"reward is None, but env(s) {np.flatnonzero(reading).tolist()[:10]} are {where} reward the env "
                 "returned for the previous action: pass it (None is for the first step after reset; to feed zeros on "
