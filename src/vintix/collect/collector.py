@@ -381,7 +381,7 @@ def _collect_batch_in_worker(args: tuple[CollectionPlan, list[int], Path, Demons
     return collect_batch(plan, indices, root, demonstrator, progress_position=position)
 
 
-def _start_worker() -> None:
+def _start_worker(parent: int) -> None:
     import torch
 
     torch.set_num_threads(1)  # one process per core: threads inside would only contend
@@ -393,6 +393,8 @@ def _start_worker() -> None:
         # A parent that cannot end its workers (kill -9) would leave them blocked forever on a queue it no
         # longer feeds: Linux sends them SIGTERM when it dies (prctl PR_SET_PDEATHSIG).
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # the parent died before the line above could ask for the signal
+        os._exit(1)
 
 
 _PR_SET_PDEATHSIG = 1
@@ -464,7 +466,7 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
         # Leaving the pool's block for any reason (a worker's error, Ctrl-C, or `kill`, which collect()
         # turns into Ctrl-C) terminates the workers and waits for them: they are never orphaned, blocked
         # on a queue nobody feeds, and they remove their unfinished files.
-        with multiprocessing.Pool(workers, initializer=_start_worker) as pool:
+        with multiprocessing.Pool(workers, initializer=_start_worker, initargs=(os.getpid(),)) as pool:
             pool.map(_collect_batch_in_worker, [(*job, n % workers) for n, job in enumerate(jobs)], chunksize=1)
             # The normal end lets each worker take its sentinel and exit. Only an abnormal one goes through the
             # block's terminate(), which races the idle workers for the task queue's lock (they hold it while
