@@ -76,8 +76,13 @@ def register_task(
                       env_factory=env_factory, group=group, reward_scale=reward_scale,
                       reference_random=reference_random, reference_expert=reference_expert, split=split,
                       aliases=aliases)
+    return add_spec(spec)
+
+
+def add_spec(spec: TaskSpec) -> TaskSpec:
+    """Put `spec` in the registry once it fits there (`check_fits_registry`), replacing an equal one; returns it."""
     check_fits_registry(spec)
-    registry._custom[name] = spec
+    registry._custom[spec.name] = spec
     return spec
 
 
@@ -158,10 +163,7 @@ def spec_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> TaskS
 
 def register_from_mapping(name: str, fields: Mapping[str, Any], where: str) -> TaskSpec:
     """`register_task` from a tasks file's entry (the user's own: its code is trusted)."""
-    spec = spec_from_mapping(name, fields, where)
-    check_fits_registry(spec)
-    registry._custom[spec.name] = spec
-    return spec
+    return add_spec(spec_from_mapping(name, fields, where))
 
 
 def register_tasks_file(path: str | os.PathLike[str]) -> list[TaskSpec]:
