@@ -221,6 +221,26 @@ def test_lapses_miss_after_the_goal_is_found_and_are_recorded_so_a_collection_ca
             load_demonstrator("reach-v3", behaviour=behaviour, lapse_probability=probability)
 
 
+def test_a_wider_reward_tolerance_makes_aimed_episodes_close_in_over_several_and_is_recorded(tmp_path):
+    """reward_tolerance widens the likelihood: the aimed episodes of the hidden Reacher miss by centimetres at
+    first and close in, where the default's end within a centimetre from the first aimed one on."""
+    seeds, episodes, task = range(100, 120), 6, "Reacher-hidden-v5"
+    default = history_outcomes(task, load_demonstrator(task, behaviour="probe-then-sample"), seeds, episodes)
+    wide = history_outcomes(task, load_demonstrator(task, behaviour="probe-then-sample", reward_tolerance=0.2),
+                            seeds, episodes)
+    assert np.median(default.end_distance[:, 1:]) < 0.01
+    assert np.median(wide.end_distance[:, 1]) > 2 * np.median(wide.end_distance[:, -1]) > 0.01
+    plan = CollectionPlan("point-goal-v1", histories=1, steps=2 * EPISODE_LENGTH, schedule=NO_NOISE,
+                          behaviour="probe-then-sample", reward_tolerance=0.2)
+    with LearningHistory(collect(plan, tmp_path)[0].path) as history:
+        assert history.attrs["reward_tolerance"] == 0.2
+    with pytest.raises(CollectionSettingsError, match="reward_tolerance"):
+        collect(dataclasses.replace(plan, reward_tolerance=0.0), tmp_path)
+    for behaviour, tolerance in (("expert", 0.2), ("probing", -1.0)):
+        with pytest.raises(VintixError, match="reward_tolerance"):
+            load_demonstrator("reach-v3", behaviour=behaviour, reward_tolerance=tolerance)
+
+
 def test_a_fumbling_lapse_holds_the_gripper_open_so_pick_place_fails_where_the_expert_succeeds():
     """The other kind of lapse, for experts that handle an object: aimed right, the object never held."""
     expert = load_demonstrator("pick-place-v3")

@@ -485,6 +485,9 @@ def demonstrator_histories(
     lapse_probability: Annotated[float, typer.Option(
         help="probe-then-sample: the chance that an episode after the first aimed one is a lapse (aimed at a prior "
              "draw, or its object mishandled)")] = 0.0,
+    reward_tolerance: Annotated[float, typer.Option(
+        min=0.0, help="the std of the reward likelihood, how far aimed episodes miss while they close in (0: the "
+                      "behaviour's default)")] = 0.0,
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
@@ -494,7 +497,7 @@ def demonstrator_histories(
 
     try:
         demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim,
-                                         lapse_probability=lapse_probability)
+                                         lapse_probability=lapse_probability, reward_tolerance=reward_tolerance)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
             inferring = ", ".join(b for b in BEHAVIOURS if b != "expert")
             raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
@@ -505,6 +508,7 @@ def demonstrator_histories(
     settings = f", probe margin {probe_margin}" if probe_margin else ""
     settings += f", aiming the {aim}" if aim != "hand" else ""
     settings += f", lapses at {lapse_probability}" if lapse_probability else ""
+    settings += f", reward tolerance {reward_tolerance}" if reward_tolerance else ""
     table = Table(title=f"{task}, {behaviour}{settings}: {seeds} histories "
                         f"(env seeds {first_seed}..{first_seed + seeds - 1})")
     for column in ("episode", "success", "mean return", "median end distance to goal"):

@@ -88,6 +88,9 @@ class CollectionPlan:
     """With behaviour 'probe-then-sample': the chance that an episode after the first aimed one is a lapse, a clean
     failure (aimed at a goal drawn from the prior, or its object mishandled) followed by aimed episodes again
     (`PosteriorSettings.lapse_probability`)."""
+    reward_tolerance: float = 0.0
+    """With a behaviour that infers the goal: the std of its reward likelihood (`PosteriorSettings.reward_tolerance`),
+    how far its aimed episodes miss while they close in on the goal; 0: the behaviour's default for the task."""
     aim: str = "hand"
     """What a scripted reach expert puts on the goal: 'hand' (Meta-World's policy) or 'gripper-centre' (what
     reach's success measures; `vintix.demonstrators.base.AIMS`)."""
@@ -125,6 +128,8 @@ class CollectionPlan:
             behaviour["probe_margin"] = self.probe_margin
         if self.lapse_probability:
             behaviour["lapse_probability"] = self.lapse_probability
+        if self.reward_tolerance:
+            behaviour["reward_tolerance"] = self.reward_tolerance
         if self.aim != "hand":
             behaviour["aim"] = self.aim
         if self.demonstrator is not None:
@@ -136,7 +141,7 @@ class CollectionPlan:
         """The demonstrator this plan's histories are played by."""
         return load_demonstrator(get_task(self.task).name, behaviour=self.behaviour, source=self.demonstrator,
                                  probe_margin=self.probe_margin, aim=self.aim,
-                                 lapse_probability=self.lapse_probability)
+                                 lapse_probability=self.lapse_probability, reward_tolerance=self.reward_tolerance)
 
 
 @dataclass(frozen=True)
@@ -354,7 +359,7 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         recorded.setdefault("pilot_steps", 0)
         # recorded only when not the default
         for key, default in (("behaviour", "expert"), ("probe_margin", 0.0), ("aim", "hand"),
-                             ("lapse_probability", 0.0)):
+                             ("lapse_probability", 0.0), ("reward_tolerance", 0.0)):
             found.setdefault(key, default)
             recorded.setdefault(key, default)
         if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare

@@ -40,7 +40,7 @@ measures (5 cm of slack around the goal instead of under 1 cm)."""
 
 def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
                       source: str | None = None, probe_margin: float = 0.0, aim: str = "hand",
-                      lapse_probability: float = 0.0) -> Demonstrator:
+                      lapse_probability: float = 0.0, reward_tolerance: float = 0.0) -> Demonstrator:
     """The project's demonstrator for `task`: Meta-World's scripted expert, or the trained policy
     shipped for the task's group (or the one in `weights`, a folder of trained weights); a clear error for
     tasks that have none. A `behaviour` other than "expert" wraps a scripted expert of a hidden-goal task
@@ -49,7 +49,9 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     behaviour 'probing' or 'probe-then-sample', how far outside the goal box the probe's corners lie. `aim`: what
     a scripted reach expert puts on the goal (`AIMS`), whatever the behaviour. `lapse_probability`: with behaviour
     'probe-then-sample', the chance of a lapse in an episode after the first aimed one
-    (`vintix.demonstrators.posterior.PosteriorSettings.lapse_probability`)."""
+    (`vintix.demonstrators.posterior.PosteriorSettings.lapse_probability`). `reward_tolerance`: with a behaviour
+    other than "expert", the std of the reward likelihood (0: the behaviour's default;
+    `vintix.demonstrators.posterior.PosteriorSettings.reward_tolerance`)."""
     spec = get_task(task)
     if (probe_margin and behaviour not in PROBING_BEHAVIOURS) or probe_margin < 0:
         raise VintixError(f"{spec.name!r}: probe_margin {probe_margin} (with behaviour {behaviour!r}) must be >= 0 and "
@@ -59,6 +61,9 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     if (lapse_probability and behaviour != "probe-then-sample") or not 0 <= lapse_probability <= 1:
         raise VintixError(f"{spec.name!r}: lapse_probability {lapse_probability} (with behaviour {behaviour!r}) must "
                           "lie in [0, 1] and is for behaviour 'probe-then-sample'; leave it out otherwise")
+    if (reward_tolerance and behaviour == "expert") or reward_tolerance < 0:
+        raise VintixError(f"{spec.name!r}: reward_tolerance {reward_tolerance} (with behaviour {behaviour!r}) must be "
+                          "> 0 and is for a behaviour that infers the goal from rewards; leave it out otherwise")
     if source is not None:
         if behaviour != "expert" or weights is not None or aim != "hand":
             raise VintixError(f"{spec.name!r}: a demonstrator named by the recipe ({source!r}) plays as it is: "
@@ -79,7 +84,7 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
                               f"{spec.group} task{' or trained weights' if weights is not None else ''}; "
                               "use behaviour 'expert'")
         expert = load_demonstrator(spec.name, aim=aim)
-        settings = posterior_settings(spec.group, behaviour, probe_margin, lapse_probability)
+        settings = posterior_settings(spec.group, behaviour, probe_margin, lapse_probability, reward_tolerance)
         return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
     if weights is not None and spec.domain in ("metaworld", "bidexhands"):
         raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "

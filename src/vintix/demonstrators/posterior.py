@@ -134,18 +134,18 @@ SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "point-goal": 0.4, "mujoco-rea
 
 
 def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0,
-                       lapse_probability: float = 0.0) -> PosteriorSettings:
+                       lapse_probability: float = 0.0, reward_tolerance: float = 0.0) -> PosteriorSettings:
     """The settings of `behaviour` ('posterior-sampling', 'probing' or 'probe-then-sample') on hidden-goal tasks of
     encoder group `group`, the probe's corners `probe_margin` outside the goal box (`PosteriorSettings.probe_margin`),
-    with 'probe-then-sample' a lapse in an episode after the first aimed one at `lapse_probability`."""
+    with 'probe-then-sample' a lapse in an episode after the first aimed one at `lapse_probability`, and the
+    likelihood's `reward_tolerance` instead of the behaviour's own where it is not 0."""
     settings = DEFAULT_SETTINGS[group]
-    if behaviour == "posterior-sampling":
-        return settings
-    probing = replace(settings, probe_steps=PROBE_STEPS[group], probe_margin=probe_margin)
-    if behaviour == "probing":
-        return probing
-    return replace(probing, sample_after_probe=True, probe_target=True,
-                   reward_tolerance=SAMPLE_AFTER_PROBE_TOLERANCE[group], lapse_probability=lapse_probability)
+    if behaviour != "posterior-sampling":
+        settings = replace(settings, probe_steps=PROBE_STEPS[group], probe_margin=probe_margin)
+    if behaviour == "probe-then-sample":
+        settings = replace(settings, sample_after_probe=True, probe_target=True,
+                           reward_tolerance=SAMPLE_AFTER_PROBE_TOLERANCE[group], lapse_probability=lapse_probability)
+    return replace(settings, reward_tolerance=reward_tolerance) if reward_tolerance else settings
 
 
 def _probe_corners(low: np.ndarray, high: np.ndarray) -> np.ndarray:
