@@ -16,28 +16,27 @@ $(INSTALLED): requirements.lock pyproject.toml
 
 install: $(INSTALLED)
 
-# The reward-ablation test on the shipped models, cold start on goals and seeds training never used
-# (README, "In-context RL"; docs/in-context-rl.md): each plays with the true rewards fed back, then with zeros; scores and
-# success always come from the true returns. point-goal (the toy hidden-goal task) shows rewards doing
-# the work, and icrl-reach (Meta-World reach) too: it probes in shot 1, then reaches the goal the rewards revealed;
-# cpu-suite (Meta-World, Industrial Benchmark, MuJoCo) shows a model whose gain over shots does not
-# come from rewards. Per-shot tables of score and success rate, then a report with the reward-use gap
-# per task, under demo/. No training. Each eval runs on one thread, so a model's zero-reward eval runs
-# beside its true-reward one on the second core (its table is printed after), and the numbers are the
-# same as run one after the other.
+# The reward-ablation test on the flagship, vintix-cpu, cold start on goals and seeds training never used (README;
+# docs/in-context-rl.md): it plays with the true rewards fed back, then with zeros; scores and success always come
+# from the true returns. Where the goal is hidden (Meta-World reach and pick-place, MuJoCo's Reacher-hidden) it
+# probes in shot 1, then succeeds where its rewards pointed, and fails with zeros; where the goal is visible
+# (Meta-World button-press, MuJoCo Pusher, Industrial Benchmark) it plays like its demonstrators either way.
+# Per-shot tables of score and success rate, then a report with the reward-use gap per task, under demo/. No
+# training. Each eval runs on one thread, so the zero-reward eval runs beside the true-reward one on the second
+# core (its table is printed after), and the numbers are the same as run one after the other.
 DEMO := demo
-DEMO_SUITE_TASKS := reach-v3,push-v3,industrial-benchmark-30-v1,industrial-benchmark-70-v1,industrial-benchmark-90-v1,Reacher-v5,Pusher-v5
-# model:tasks:seeds
-DEMO_RUNS := point-goal:point-goal-v1:20 icrl-reach:reach-v3:20 cpu-suite:$(DEMO_SUITE_TASKS):3
+# name:model:tasks:seeds
+DEMO_RUNS := hidden-goals:vintix-cpu:reach-v3,pick-place-v3,Reacher-hidden-v5:10 \
+	visible-goals:vintix-cpu:button-press-v3,Pusher-v5,industrial-benchmark-30-v1:3
 DEMO_EVAL := --shots 10 --first-seed 100 --reference ours
 demo: $(INSTALLED)
 	mkdir -p $(DEMO)/logs
 	for run in $(DEMO_RUNS); do \
 	  set -- $$(echo $$run | tr : ' '); \
-	  $(BIN)/vintix eval --checkpoint $$1 --tasks $$2 --seeds $$3 $(DEMO_EVAL) --reward-input zero \
-	    --label $$1 --out $(DEMO)/$$1/zero > $(DEMO)/logs/$$1-zero.log 2>&1 & zero=$$!; \
-	  $(BIN)/vintix eval --checkpoint $$1 --tasks $$2 --seeds $$3 $(DEMO_EVAL) --reward-input true \
-	    --label $$1 --out $(DEMO)/$$1/true || { wait $$zero; exit 1; }; \
+	  $(BIN)/vintix eval --checkpoint $$2 --tasks $$3 --seeds $$4 $(DEMO_EVAL) --reward-input zero \
+	    --label "$$2, $$1" --out $(DEMO)/$$1/zero > $(DEMO)/logs/$$1-zero.log 2>&1 & zero=$$!; \
+	  $(BIN)/vintix eval --checkpoint $$2 --tasks $$3 --seeds $$4 $(DEMO_EVAL) --reward-input true \
+	    --label "$$2, $$1" --out $(DEMO)/$$1/true || { wait $$zero; exit 1; }; \
 	  wait $$zero; status=$$?; cat $(DEMO)/logs/$$1-zero.log; [ $$status -eq 0 ] || exit 1; \
 	  $(BIN)/vintix report $(DEMO)/$$1/true $(DEMO)/$$1/zero --reference ours --plateau-shots 3 \
 	    --out $(DEMO)/report/$$1 || exit 1; \

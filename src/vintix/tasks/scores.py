@@ -92,7 +92,12 @@ def reference(task: str, table: str = "paper") -> Reference | None:
 
 
 def missing_reference_note(tasks: list[str], table: str) -> str:
-    """What to tell a user whose table lacks `tasks`."""
+    """What to tell a user whose table lacks `tasks`: the paper's lacks the tasks it never ran (nothing to
+    measure), ours those whose demonstrator and random policy were not measured yet."""
+    if table == "paper":
+        return (f"no 'paper' reference score (random and demonstrator returns) for {len(tasks)} task(s) the paper "
+                f"never ran: {', '.join(tasks)}; their normalized_paper scores are left empty (--reference ours "
+                "scores them)")
     return (f"no '{table}' reference score (random and demonstrator returns) for {len(tasks)} task(s): "
             f"{', '.join(tasks)}; their normalized_{table} scores are left empty. Measure them with "
             f"`vintix demonstrator eval --task TASK`.")
