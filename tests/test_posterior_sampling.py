@@ -201,6 +201,21 @@ def test_demonstrator_histories_prints_how_a_goal_inferring_demonstrator_does_ep
     assert result.exit_code == 2 and "does not learn within a history" in " ".join(result.output.split())
 
 
+def check_setting_is_recorded_and_refused_where_wrong(tmp_path, name: str, value: float,
+                                                      refused: list[tuple[str, float]]) -> None:
+    """A demonstrator setting of a recipe: recorded in each history, so a collection will not add histories made
+    without it to a folder of histories made with it; refused for each (behaviour, value) in `refused`."""
+    plan = CollectionPlan("point-goal-v1", histories=1, steps=2 * EPISODE_LENGTH, schedule=NO_NOISE,
+                          behaviour="probe-then-sample", **{name: value})
+    with LearningHistory(collect(plan, tmp_path)[0].path) as history:
+        assert history.attrs[name] == value
+    with pytest.raises(CollectionSettingsError, match=name):
+        collect(dataclasses.replace(plan, **{name: 0.0}), tmp_path)
+    for behaviour, wrong in refused:
+        with pytest.raises(VintixError, match=name):
+            load_demonstrator("reach-v3", behaviour=behaviour, **{name: wrong})
+
+
 def test_lapses_miss_after_the_goal_is_found_and_are_recorded_so_a_collection_cannot_mix_them(tmp_path):
     """With lapses, some episodes after the first aimed one aim at a prior draw: they end far from the goal the
     episodes before and after them reach, while the recorded target stays the goal-aware expert."""
@@ -210,15 +225,8 @@ def test_lapses_miss_after_the_goal_is_found_and_are_recorded_so_a_collection_ca
                                seeds, episodes).success
     assert np.array_equal(lapsing[:, :2], steady[:, :2])  # the probe and the first aimed episode never lapse
     assert steady[:, 2:].mean() >= 0.9 and lapsing[:, 2:].mean() <= steady[:, 2:].mean() - 0.2
-    plan = CollectionPlan("point-goal-v1", histories=1, steps=4 * EPISODE_LENGTH, schedule=NO_NOISE,
-                          behaviour="probe-then-sample", lapse_probability=0.5)
-    with LearningHistory(collect(plan, tmp_path)[0].path) as history:
-        assert history.attrs["lapse_probability"] == 0.5
-    with pytest.raises(CollectionSettingsError, match="lapse_probability"):
-        collect(dataclasses.replace(plan, lapse_probability=0.0), tmp_path)
-    for behaviour, probability in (("probing", 0.5), ("probe-then-sample", 1.5)):
-        with pytest.raises(VintixError, match="lapse_probability"):
-            load_demonstrator("reach-v3", behaviour=behaviour, lapse_probability=probability)
+    check_setting_is_recorded_and_refused_where_wrong(tmp_path, "lapse_probability", 0.5,
+                                                      [("probing", 0.5), ("probe-then-sample", 1.5)])
 
 
 def test_a_wider_reward_tolerance_makes_aimed_episodes_close_in_over_several_and_is_recorded(tmp_path):
@@ -230,15 +238,8 @@ def test_a_wider_reward_tolerance_makes_aimed_episodes_close_in_over_several_and
                             seeds, episodes)
     assert np.median(default.end_distance[:, 1:]) < 0.01
     assert np.median(wide.end_distance[:, 1]) > 2 * np.median(wide.end_distance[:, -1]) > 0.01
-    plan = CollectionPlan("point-goal-v1", histories=1, steps=2 * EPISODE_LENGTH, schedule=NO_NOISE,
-                          behaviour="probe-then-sample", reward_tolerance=0.2)
-    with LearningHistory(collect(plan, tmp_path)[0].path) as history:
-        assert history.attrs["reward_tolerance"] == 0.2
-    with pytest.raises(CollectionSettingsError, match="reward_tolerance"):
-        collect(dataclasses.replace(plan, reward_tolerance=0.0), tmp_path)
-    for behaviour, tolerance in (("expert", 0.2), ("probing", -1.0)):
-        with pytest.raises(VintixError, match="reward_tolerance"):
-            load_demonstrator("reach-v3", behaviour=behaviour, reward_tolerance=tolerance)
+    check_setting_is_recorded_and_refused_where_wrong(tmp_path, "reward_tolerance", 0.2,
+                                                      [("expert", 0.2), ("probing", -1.0)])
 
 
 def test_a_fumbling_lapse_holds_the_gripper_open_so_pick_place_fails_where_the_expert_succeeds():

@@ -12,7 +12,8 @@ from vintix.model.checkpoint import WEIGHTS_FILE, CheckpointError, read_metadata
 from vintix.tasks import get_task, make_env
 
 
-@pytest.mark.parametrize("name", ["cpu-suite", "icrl-reach", "icrl-suite", "vintix-cpu"])  # point-goal: no checkpoint selection
+# point-goal: no checkpoint selection
+@pytest.mark.parametrize("name", ["cpu-suite", "icrl-reach", "icrl-suite", "vintix-cpu"])
 def test_a_shipped_model_is_small_trained_on_its_recipe_and_records_how_it_was_made(name):
     assert name in shipped_models()
     folder = resolve_checkpoint(name)
