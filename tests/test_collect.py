@@ -88,6 +88,19 @@ def test_a_folder_collected_without_demonstrator_actions_is_refused(tmp_path):
         collect(plan, tmp_path)
 
 
+def test_a_folder_played_by_another_demonstrator_is_refused_both_ways(tmp_path):
+    """A history records a demonstrator named from outside the package, so neither the package's own nor a named
+    one adds histories to a folder the other played."""
+    named = CollectionPlan("reach-v3", histories=1, steps=100, demonstrator="vintix.demonstrators:load_demonstrator")
+    collect(named, tmp_path / "named")
+    with pytest.raises(CollectionSettingsError, match="demonstrator 'vintix.demonstrators:load_demonstrator' "
+                                                      "\\(now None\\)"):
+        collect(replace(named, demonstrator=None), tmp_path / "named")
+    collect(replace(named, demonstrator=None), tmp_path / "own")
+    with pytest.raises(CollectionSettingsError, match="demonstrator None"):
+        collect(named, tmp_path / "own")
+
+
 def test_same_seed_same_bytes_other_seed_other_data(tmp_path):
     collect(PLAN, tmp_path / "a")
     collect(PLAN, tmp_path / "b")

@@ -28,7 +28,7 @@ import signal
 import sys
 import zlib
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -123,17 +123,8 @@ class CollectionPlan:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
         env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
         # Only settings other than the defaults are recorded, so histories made with the defaults keep their bytes.
-        behaviour: dict[str, Any] = {} if self.behaviour == "expert" else {"behaviour": self.behaviour}
-        if self.probe_margin:
-            behaviour["probe_margin"] = self.probe_margin
-        if self.lapse_probability:
-            behaviour["lapse_probability"] = self.lapse_probability
-        if self.reward_tolerance:
-            behaviour["reward_tolerance"] = self.reward_tolerance
-        if self.aim != "hand":
-            behaviour["aim"] = self.aim
-        if self.demonstrator is not None:
-            behaviour["demonstrator"] = self.demonstrator
+        behaviour = {name: getattr(self, name) for name, default in demonstrator_setting_defaults().items()
+                     if getattr(self, name) != default}
         return {"task": get_task(self.task).name, "env_seed": env_seed, "collection_seed": self.seed,
                 "steps": self.steps, **self.schedule.recorded(), **behaviour}
 
@@ -142,6 +133,17 @@ class CollectionPlan:
         return load_demonstrator(get_task(self.task).name, behaviour=self.behaviour, source=self.demonstrator,
                                  probe_margin=self.probe_margin, aim=self.aim,
                                  lapse_probability=self.lapse_probability, reward_tolerance=self.reward_tolerance)
+
+
+DEMONSTRATOR_SETTINGS = ("behaviour", "probe_margin", "lapse_probability", "reward_tolerance", "aim", "demonstrator")
+"""The `CollectionPlan` fields that say how the demonstrator plays, each recorded in a history where it is not the
+default (in this order: the order of a file's attributes)."""
+
+
+def demonstrator_setting_defaults() -> dict[str, Any]:
+    """Each of `DEMONSTRATOR_SETTINGS` with its default: what a history that does not record it was made with."""
+    defaults = {field.name: field.default for field in fields(CollectionPlan)}
+    return {name: defaults[name] for name in DEMONSTRATOR_SETTINGS}
 
 
 @dataclass(frozen=True)
@@ -357,9 +359,7 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         schedule = NoiseSchedule.from_recorded(found)
         found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
         recorded.setdefault("pilot_steps", 0)
-        # recorded only when not the default
-        for key, default in (("behaviour", "expert"), ("probe_margin", 0.0), ("aim", "hand"),
-                             ("lapse_probability", 0.0), ("reward_tolerance", 0.0)):
+        for key, default in demonstrator_setting_defaults().items():  # recorded only when not the default
             found.setdefault(key, default)
             recorded.setdefault(key, default)
         if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare
