@@ -21,6 +21,6 @@ for recipe in base tolerant; do
       --out "$W/results/$recipe-$rewards" --overwrite
   done
 done
-$PYTHON "$HERE/../../../scripts/success_over_shots.py" --strips "$W"/results/*-true | tee "$W/success-over-shots.txt"
+$PYTHON "$HERE/../../../scripts/success_over_shots.py" --strips --drift 0.5 "$W"/results/*-true | tee "$W/success-over-shots.txt"
 $V report "$W"/results/* --reference ours --out "$W/report"
 echo "report: $W/report/report.md"
