@@ -12,7 +12,8 @@
 # seeds, 10 shots, with true and zero rewards; the report with the reward-use gap. Set NR=1 to also train and evaluate the AD-without-rewards ablation, ED=1
 # the expert-distillation one (the same model trained on the goal-aware expert's histories of the same
 # goals, recipe NAME-expert, evaluated with true, zero and shuffled rewards too). Set RECIPE to collect
-# another recipe (a name or a YAML file) and train it with config NAME.
+# another recipe (a name or a YAML file) and train it with config NAME, CHECKPOINT (e.g. step-00009000) to
+# evaluate that checkpoint of each run instead of the one its in-context selection kept.
 set -euo pipefail
 NAME=${1:?usage: scripts/icrl.sh icrl-reach|icrl-suite [WORK_DIR]}
 W=${2:-$NAME}
@@ -26,12 +27,14 @@ print(','.join(p.task for p in load_recipe('${RECIPE:-$NAME}') if p.task not in 
 EVAL=(--tasks "$TASKS" --shots "${SHOTS:-20}" --seeds 20 --first-seed 100 --reference ours)
 
 folders=()
+# model RUN: the run's checkpoint to evaluate (a run folder means its selected best)
+model() { echo "$W/runs/$1${CHECKPOINT:+/checkpoints/$CHECKPOINT}"; }
 # evaluate RUN LABEL REWARDS...: cold-start eval of $W/runs/RUN with each kind of reward fed back
 evaluate() {
   local run=$1 label=$2 rewards
   shift 2
   for rewards in "$@"; do
-    $V eval --checkpoint "$W/runs/$run" --label "$label ($rewards rewards)" "${EVAL[@]}" --reward-input "$rewards" \
+    $V eval --checkpoint "$(model "$run")" --label "$label ($rewards rewards)" "${EVAL[@]}" --reward-input "$rewards" \
       --out "$W/results/$run-$rewards"
     folders+=("$W/results/$run-$rewards")
   done
@@ -42,7 +45,7 @@ $V train --config "$NAME" --data "$W/data" --out "$W/runs/ad"
 evaluate ad AD true zero shuffled
 if [[ -n $VISIBLE ]]; then
   for rewards in true zero; do
-    $V eval --checkpoint "$W/runs/ad" --label "AD, visible tasks ($rewards rewards)" --tasks "$VISIBLE" --shots 10 \
+    $V eval --checkpoint "$(model ad)" --label "AD, visible tasks ($rewards rewards)" --tasks "$VISIBLE" --shots 10 \
       --seeds 10 --first-seed 100 --reference ours --reward-input "$rewards" --out "$W/results/visible-$rewards"
   done
   $V report "$W/results/visible-true" "$W/results/visible-zero" --reference ours --out "$W/report-visible"
@@ -58,4 +61,4 @@ if [[ ${ED:-0} == 1 ]]; then
   evaluate ed ED true zero shuffled
 fi
 $V report "${folders[@]}" --reference ours --out "$W/report"
-echo "model under $W/runs/ad/checkpoints/best, results under $W/results, report $W/report/report.md"
+echo "model under $(model ad), results under $W/results, report $W/report/report.md"
