@@ -123,7 +123,7 @@ class CollectionPlan:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
         env_seed = history_seeds(get_task(self.task).name, index, self.seed).env_seed
         # Only settings other than the defaults are recorded, so histories made with the defaults keep their bytes.
-        behaviour = {name: getattr(self, name) for name, default in demonstrator_setting_defaults().items()
+        behaviour = {name: getattr(self, name) for name, default in DEMONSTRATOR_SETTING_DEFAULTS.items()
                      if getattr(self, name) != default}
         return {"task": get_task(self.task).name, "env_seed": env_seed, "collection_seed": self.seed,
                 "steps": self.steps, **self.schedule.recorded(), **behaviour}
@@ -135,15 +135,12 @@ class CollectionPlan:
                                  lapse_probability=self.lapse_probability, reward_tolerance=self.reward_tolerance)
 
 
-DEMONSTRATOR_SETTINGS = ("behaviour", "probe_margin", "lapse_probability", "reward_tolerance", "aim", "demonstrator")
-"""The `CollectionPlan` fields that say how the demonstrator plays, each recorded in a history where it is not the
-default (in this order: the order of a file's attributes)."""
-
-
-def demonstrator_setting_defaults() -> dict[str, Any]:
-    """Each of `DEMONSTRATOR_SETTINGS` with its default: what a history that does not record it was made with."""
-    defaults = {field.name: field.default for field in fields(CollectionPlan)}
-    return {name: defaults[name] for name in DEMONSTRATOR_SETTINGS}
+DEMONSTRATOR_SETTING_DEFAULTS: dict[str, Any] = {
+    field.name: field.default for field in fields(CollectionPlan)
+    if field.name in ("behaviour", "probe_margin", "lapse_probability", "reward_tolerance", "aim", "demonstrator")}
+"""The `CollectionPlan` fields that say how the demonstrator plays, with their defaults: each is recorded in a
+history where it is not the default (in the fields' order, the order of a file's attributes), so a history that
+does not record one was made with its default."""
 
 
 @dataclass(frozen=True)
@@ -359,7 +356,7 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
         schedule = NoiseSchedule.from_recorded(found)
         found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
         recorded.setdefault("pilot_steps", 0)
-        for key, default in demonstrator_setting_defaults().items():  # recorded only when not the default
+        for key, default in DEMONSTRATOR_SETTING_DEFAULTS.items():  # recorded only when not the default
             found.setdefault(key, default)
             recorded.setdefault(key, default)
         if not plan.schedule.pilot_steps:  # with a pilot, each history fitted its own knots: nothing to compare
