@@ -26,13 +26,15 @@ Runs = dict[int, dict[int, float]]
 """seed -> shot -> a value of that episode"""
 
 
-def episodes_by_run(folder: Path, column: str) -> dict[str, Runs]:
-    """task -> seed -> shot -> `column` ('success', 'return'), from a `vintix eval` folder's episodes.csv."""
-    runs: dict[str, Runs] = defaultdict(lambda: defaultdict(dict))
+def episodes_by_run(folder: Path) -> dict[str, dict[str, Runs]]:
+    """'success' and 'return' -> task -> seed -> shot -> value, from a `vintix eval` folder's episodes.csv."""
+    columns: dict[str, dict[str, Runs]] = {column: defaultdict(lambda: defaultdict(dict))
+                                           for column in ("success", "return")}
     with (folder / "episodes.csv").open() as file:
         for row in csv.DictReader(file):
-            runs[row["task"]][int(row["seed"])][int(row["shot"])] = float(row[column])
-    return runs
+            for column, runs in columns.items():
+                runs[row["task"]][int(row["seed"])][int(row["shot"])] = float(row[column])
+    return columns
 
 
 def shot_blocks(shots: int) -> list[tuple[int, int]]:
@@ -70,14 +72,14 @@ def main() -> None:
                              "less (more) than shots 2-10")
     args = parser.parse_args()
     for folder in args.results:
-        returns = episodes_by_run(folder, "return")
-        for task, runs in sorted(episodes_by_run(folder, "success").items()):
+        episodes = episodes_by_run(folder)
+        for task, runs in sorted(episodes["success"].items()):
             shots = max(max(run) for run in runs.values())
             blocks = shot_blocks(shots)
             rate = np.mean([block_means(run, blocks) for run in runs.values()], axis=0)
             print(f"{folder}  {task}  ({len(runs)} runs)  {format_blocks(blocks, rate)}")
             if args.drift is not None:
-                print(drift_line(returns[task], blocks, args.drift))
+                print(drift_line(episodes["return"][task], blocks, args.drift))
             if args.strips:
                 for seed, run in sorted(runs.items()):
                     print(f"  seed {seed:>6}  " + "".join("#" if run.get(s) else "." for s in range(1, shots + 1)))
