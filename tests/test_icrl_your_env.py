@@ -16,10 +16,10 @@ import numpy as np
 PAGE = Path(__file__).parents[1] / "docs" / "icrl-your-env.md"
 
 
-def page_blocks() -> tuple[dict[str, str], str]:
+def page_blocks(page: Path = PAGE) -> tuple[dict[str, str], str]:
     """The page's files, by the name on their first line (``# hidden_target.py ...``), and its shell block."""
     files, shell = {}, ""
-    for language, body in re.findall(r"```(\w+)\n(.*?)```", PAGE.read_text(), flags=re.S):
+    for language, body in re.findall(r"```(\w+)\n(.*?)```", page.read_text(), flags=re.S):
         if language == "bash":
             shell = body
         else:
@@ -34,16 +34,22 @@ def success_by_shot(folder: Path) -> dict[int, float]:
             for shot in sorted({int(r["shot"]) for r in rows})}
 
 
-def test_following_the_page_gives_a_model_that_finds_the_hidden_target_from_its_rewards(tmp_path):
-    files, shell = page_blocks()
-    assert set(files) == {"hidden_target.py", "tasks.yaml", "recipe.yaml", "train.yaml"}
+def follow_page(page: Path, folder: Path) -> set[str]:
+    """Write `page`'s files into `folder` and run its shell block there, with this environment's vintix; the
+    names of the files it wrote."""
+    files, shell = page_blocks(page)
     for name, text in files.items():
-        (tmp_path / name).write_text(text)
-    env = {**os.environ, "PYTHONPATH": str(tmp_path),
+        (folder / name).write_text(text)
+    env = {**os.environ, "PYTHONPATH": str(folder),
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}  # this environment's vintix
-    run = subprocess.run(["bash", "-euo", "pipefail", "-c", shell], cwd=tmp_path, env=env, capture_output=True,
+    run = subprocess.run(["bash", "-euo", "pipefail", "-c", shell], cwd=folder, env=env, capture_output=True,
                          text=True, timeout=900)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    return set(files)
+
+
+def test_following_the_page_gives_a_model_that_finds_the_hidden_target_from_its_rewards(tmp_path):
+    assert follow_page(PAGE, tmp_path) == {"hidden_target.py", "tasks.yaml", "recipe.yaml", "train.yaml"}
     true, zero = success_by_shot(tmp_path / "results" / "true"), success_by_shot(tmp_path / "results" / "zero")
     later = [2, 3, 4]
     assert true[1] <= 0.3  # the probe

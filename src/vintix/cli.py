@@ -159,7 +159,8 @@ def _paper_score(score: ReferenceScore | None) -> str:
 
 @app.command()
 def tasks(
-    domain: Annotated[str | None, typer.Option(help="mujoco, metaworld, industrial_benchmark or bidexhands")] = None,
+    domain: Annotated[str | None, typer.Option(help="mujoco, metaworld, industrial_benchmark, bidexhands, toy, icrl "
+                                                    "(the discrete benchmarks) or custom")] = None,
     split: Annotated[str | None, typer.Option(help="train or test")] = None,
     group: Annotated[str | None, typer.Option(help="encoder/head group, e.g. metaworld")] = None,
 ) -> None:
@@ -173,7 +174,8 @@ def tasks(
         table.add_column(column, justify="right" if column in ("obs", "act", "episode", "reward×") else "left")
     for t in selected:
         table.add_row(
-            t.name, t.domain, t.group, str(t.obs_dim), str(t.act_dim), str(t.episode_length), f"{t.reward_scale:g}",
+            t.name, t.domain, t.group, str(t.obs_dim), f"{t.act_dim} discrete" if t.discrete else str(t.act_dim),
+            str(t.episode_length), f"{t.reward_scale:g}",
             t.split, _paper_score(t.paper_random), _paper_score(t.paper_expert),
         )
     console.print(table)
@@ -593,10 +595,10 @@ def demonstrator_runs(
                   "episodes, exploration included (`vintix demonstrator eval` scores a finished one)")
 
 
-def registry_dims(task_name: str) -> tuple[int, int] | None:
-    """(obs_dim, act_dim) the registry expects for a dataset's task name; None if it is not ours."""
+def registry_dims(task_name: str) -> tuple[int, int, bool] | None:
+    """(obs_dim, act_dim, discrete) the registry expects for a dataset's task name; None if it is not ours."""
     spec = find_task(task_name)
-    return None if spec is None else (spec.obs_dim, spec.act_dim)
+    return None if spec is None else (spec.obs_dim, spec.act_dim, spec.discrete)
 
 
 def registry_episode_limit(task_name: str) -> int | None:
@@ -994,6 +996,9 @@ def eval_command(
         metavar="true|zero|shuffled", help="rewards fed back to the model: the env's (true), zeros, or the episode's "
         "own in random order (shuffled), to measure how much the rewards drive the in-context gains; scores and "
         "success are always computed from the true returns")] = EvalConfig.reward_input,
+    greedy: Annotated[bool, typer.Option(
+        "--greedy", help="discrete tasks: act on the argmax of the model's logits (a gaussian policy: its mean) "
+        "instead of a draw; by default the policy samples, as AD and DPT are evaluated")] = EvalConfig.greedy,
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
                                          "tiny ops that a second thread slows down on a busy machine")] = 1,
@@ -1015,7 +1020,8 @@ def eval_command(
         check_table(reference)  # summarize() would otherwise meet it only after the whole run
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
-                            prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input)
+                            prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input,
+                            greedy=greedy)
         resolved = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(resolved, device)
         rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, True, ray,

@@ -29,7 +29,7 @@ from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix, normalize_inputs
-from vintix.tasks import action_bounds, find_task, get_task
+from vintix.tasks import ActionSpaceError, action_space_of, find_task, get_task, task_action_space
 from vintix.tasks.layouts import ObsLayout
 from vintix.train.checkpoint import intact_alternative_hint
 
@@ -59,6 +59,7 @@ class AgentTask:
     norm_source: str
     """'task' (the checkpoint's statistics of this task) or 'group-pooled' (held-out task)"""
     action_low: np.ndarray
+    """a Box task's bounds (a discrete task's: 0 and its last action)"""
     action_high: np.ndarray
     obs_layout: ObsLayout | None = None
     """how the env's observation becomes the group's (`vintix.tasks.layouts`); None: as it is"""
@@ -87,8 +88,18 @@ def _checkpoint_task_index(model: Vintix, task: str) -> int | None:
     return None
 
 
-def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None = None) -> AgentTask:
-    """Group and normalization of `task` for `model`; an unknown task or group is a clear error."""
+def _pooled_reward_scale(model: Vintix, members: list[int], registry_scale: float) -> float:
+    """The reward scale of a task the checkpoint has no statistics of: where training put every task's rewards at
+    unit scale (`TrainConfig.normalize_rewards`, each task's own 1 / std), the mean of its group's scales, which is
+    what the model learned to read; else the registry's, which training used too."""
+    normalized = model.checkpoint_extra.get("train_config", {}).get("normalize_rewards", False)
+    return float(model.reward_scale[members].mean()) if normalized else registry_scale
+
+
+def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | gym.spaces.Discrete | None = None
+                 ) -> AgentTask:
+    """Group and normalization of `task` for `model`; an unknown task or group, or an action space of another kind
+    or size than the group's, is a clear error."""
     index = _checkpoint_task_index(model, task)
     if index is not None:
         group = model.task_norms[index].group
@@ -110,7 +121,7 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
         divisor_floor = model.config.std_floor + model.config.std_epsilon  # as the model's own divisors
         mean = means.mean(0)
         std = ((stds**2 + means**2).mean(0) - mean**2).clamp_min(0).sqrt().clamp_min(divisor_floor)
-        reward_scale, source, layout = spec.reward_scale, "group-pooled", None
+        reward_scale, source, layout = _pooled_reward_scale(model, members, spec.reward_scale), "group-pooled", None
     known = find_task(task)
     env_dim = layout.env_dim if layout is not None else model.groups[group].obs_dim
     if known is not None and known.obs_dim != env_dim:
@@ -118,15 +129,27 @@ def resolve_task(model: Vintix, task: str, action_space: gym.spaces.Box | None =
             f"task {task!r} has {known.obs_dim}-dim observations but the checkpoint's group {group!r} expects "
             f"{env_dim}; the checkpoint was trained on another version of this env"
         )
-    if action_space is not None:
-        low, high = np.asarray(action_space.low, np.float32), np.asarray(action_space.high, np.float32)
-    else:
-        low, high = action_bounds(task)
-    act_dim = model.groups[group].act_dim
-    if low.shape != (act_dim,):
+    group_spec = model.groups[group]
+    try:
+        space = action_space_of(action_space if action_space is not None else task_action_space(task))
+    except ActionSpaceError as error:
+        raise AgentInputError(f"task {task!r}: {error}") from error
+    if isinstance(space, gym.spaces.Discrete) != group_spec.discrete:
+        kind, other = ("discrete", "continuous (Box)") if group_spec.discrete else ("continuous", "discrete")
         raise AgentInputError(
-            f"task {task!r}: action space has shape {low.shape}, group {group!r} acts in {act_dim} dims"
-        )
+            f"task {task!r} acts in {space}, but the checkpoint's group {group!r} is {kind}: a {kind} model cannot "
+            f"play a {other} task. Evaluate it on tasks of its own kind, or train a model on {task!r}'s data")
+    if isinstance(space, gym.spaces.Discrete):
+        if int(space.n) != group_spec.act_dim:
+            raise AgentInputError(f"task {task!r}: action space {space} has {int(space.n)} actions, group {group!r} "
+                                  f"chooses among {group_spec.act_dim}")
+        low, high = np.zeros(1, np.float32), np.full(1, group_spec.act_dim - 1, np.float32)
+    else:
+        low, high = np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+        if low.shape != (group_spec.act_dim,):
+            raise AgentInputError(
+                f"task {task!r}: action space has shape {low.shape}, group {group!r} acts in {group_spec.act_dim} dims"
+            )
     return AgentTask(task, group, mean, std, reward_scale, source, low, high, layout)
 
 
@@ -274,10 +297,11 @@ class Agent:
         return 0 if self.cache is None else self.cache.length
 
     @_one_call_at_a_time
-    def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box] | None = None, *,
-              discard_context: bool = False) -> None:
+    def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box | gym.spaces.Discrete] | None = None,
+              *, discard_context: bool = False) -> None:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
-        `action_spaces` (default: each task's registry env's action space).
+        `action_spaces` (default: each task's registry env's action space); a Discrete space's actions are the
+        indices 0 to n - 1 of a discrete group's logits.
 
         This clears the context, which is where in-context learning lives: a new *episode* is an
         ``episode_start`` flag to `act` / `predict`, never a reset. Clearing a context that holds steps
@@ -294,14 +318,19 @@ class Agent:
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
         self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces, strict=True)]
         self._regroup()
-        self._prev_action = {
-            g: torch.zeros(len(b.envs), self.model.groups[g].act_dim, device=self.device)
-            for g, b in self._groups.items()
-        }
+        self._prev_action = {g: self._no_actions(g, len(b.envs)) for g, b in self._groups.items()}
         self.cache = KVCache.for_model(self.model, len(self.tasks))
         self._awaiting_start = np.zeros(len(self.tasks), dtype=bool)
         self._last_rewards = np.zeros(len(self.tasks))  # next-step autoreset: the reward that came with the flag
         self._generator.manual_seed(self.seed)
+
+    def _no_actions(self, group: str, envs: int) -> torch.Tensor:
+        """The previous actions of `envs` envs of `group` before their first: zeros (an episode start's padding
+        replaces them); a discrete group's are indices."""
+        spec = self.model.groups[group]
+        if spec.discrete:
+            return torch.zeros(envs, dtype=torch.long, device=self.device)
+        return torch.zeros(envs, spec.act_dim, device=self.device)
 
     def _regroup(self) -> None:
         """Per-group views of the batch (`self.tasks`), built once per reset or keep, not per step."""
@@ -381,9 +410,12 @@ class Agent:
     @torch.inference_mode()
     def act(
         self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
-        episode_starts: Sequence[bool] | np.ndarray,
+        episode_starts: Sequence[bool] | np.ndarray, deterministic: bool = False,
     ) -> list[np.ndarray]:
-        """One step of every env: actions (clipped to each env's bounds), one array per env.
+        """One step of every env: actions (clipped to each env's bounds), one array per env; a discrete env's is
+        an integer index (a 0-d array), drawn from the model's logits, or their argmax when `deterministic` (a
+        gaussian-policy model's: its mean). AD and DPT sample: a greedy policy on a flat distribution never
+        explores.
 
         ``obs[i]`` is env ``i``'s raw observation and ``prev_rewards[i]`` the raw reward it returned for the
         agent's previous action; where ``episode_starts[i]`` (the first observation of an episode) that is the
@@ -391,7 +423,7 @@ class Agent:
         both (per-task observation statistics, per-task reward scale). A NaN/inf action from the model raises
         `AgentOutputError`: every action returned is finite and within bounds.
         """
-        return self._act(obs, prev_rewards, episode_starts)
+        return self._act(obs, prev_rewards, episode_starts, sample=not deterministic)
 
     def _act(
         self, obs: Sequence[np.ndarray], prev_rewards: Sequence[float] | np.ndarray,
@@ -426,6 +458,9 @@ class Agent:
         hidden = cached_backbone(self.model, tokens, self.cache, sitting_out)[:, -1]
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, members in self._groups.items():
+            if self.model.groups[group].discrete:
+                self._choose_discrete(group, members, hidden, sitting_out, sample, actions)
+                continue
             mean, log_std = self.model.action_distribution(group, hidden[members.envs])
             if log_std is not None and sample:  # a gaussian policy acts on a draw
                 mean = mean + log_std.exp() * torch.randn(mean.shape, generator=self._generator, device=mean.device)
@@ -443,6 +478,25 @@ class Agent:
             for i, a in zip(members.envs.tolist(), action.cpu().numpy(), strict=True):
                 actions[i] = a
         return actions
+
+    def _choose_discrete(self, group: str, members: _GroupBatch, hidden: torch.Tensor,
+                         sitting_out: torch.Tensor | None, sample: bool, actions: list[np.ndarray]) -> None:
+        """A discrete group's actions: a draw from its logits (or their argmax), each a 0-d integer array."""
+        logits = self.model.action_distribution(group, hidden[members.envs])[0].float()
+        if not torch.isfinite(logits).all():
+            env = int(members.envs[~torch.isfinite(logits).all(dim=1)][0])
+            raise AgentOutputError(
+                f"env {env} ({self.tasks[env].task}): the model's action logits are NaN/inf for finite inputs; its "
+                "weights are damaged or it overflowed. Load another checkpoint (an earlier one of the run)")
+        if sample:
+            action = torch.multinomial(logits.softmax(dim=-1), 1, generator=self._generator).squeeze(1)
+        else:
+            action = logits.argmax(dim=-1)
+        if sitting_out is not None:
+            action = torch.where(sitting_out[members.envs], self._prev_action[group], action)
+        self._prev_action[group] = action
+        for i, a in zip(members.envs.tolist(), action.cpu().numpy(), strict=True):
+            actions[i] = np.asarray(a, dtype=np.int64)
 
     @_one_call_at_a_time
     @torch.inference_mode()
@@ -541,13 +595,20 @@ class Agent:
             spec = self.model.groups[task.group]
             self._check("prompt observations", i, _numbers("prompt observations", observations[i], np.float64),
                         (steps, task.env_obs_dim(self.model)))
-            self._check("prompt actions", i, _numbers("prompt actions", actions[i], np.float64), (steps, spec.act_dim))
+            shape = (steps,) if spec.discrete else (steps, spec.act_dim)
+            self._check("prompt actions", i, _numbers("prompt actions", actions[i], np.float64), shape)
+            if spec.discrete and not np.isin(actions[i], np.arange(spec.act_dim)).all():
+                raise AgentInputError(f"env {i} ({task.task}): prompt actions must be the indices 0-{spec.act_dim - 1} "
+                                      f"of group {task.group!r}'s actions")
             self._check("prompt rewards", i, _numbers("prompt rewards", rewards[i], np.float64), (steps,))
         # Row t of a history: o_t, a_t taken at o_t, r_t after it; token t carries a_{t-1}, r_{t-1}.
+        def dtype(group: str) -> torch.dtype:
+            return torch.long if self.model.groups[group].discrete else torch.float32
+
         shifted = {
             g: torch.as_tensor(
                 np.stack([np.concatenate([np.zeros_like(actions[i][:1]), actions[i][:-1]]) for i in b.envs.tolist()]),
-                dtype=torch.float32, device=self.device,
+                dtype=dtype(g), device=self.device,
             )
             for g, b in self._groups.items()
         }
@@ -557,5 +618,5 @@ class Agent:
         cached_backbone(self.model, self._tokens(observations, shifted, prev_rewards, starts), self.cache)
         for g, b in self._groups.items():
             self._prev_action[g] = torch.as_tensor(
-                np.stack([actions[i][-1] for i in b.envs.tolist()]), dtype=torch.float32, device=self.device
+                np.stack([actions[i][-1] for i in b.envs.tolist()]), dtype=dtype(g), device=self.device
             )

@@ -39,7 +39,7 @@ from tqdm import tqdm
 from vintix import cluster
 from vintix.atomic import check_output_kind, folder_lock
 from vintix.collect.calibrate import pilot_knots
-from vintix.collect.noise import NoiseSchedule, mix_action
+from vintix.collect.noise import NoiseSchedule, epsilon_greedy, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
 from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, UNFINISHED_FILES, history_bytes
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
@@ -47,7 +47,7 @@ from vintix.errors import VintixError, call_plugin
 from vintix.fields import check_field_types
 from vintix.interrupt import sigterm_as_ctrl_c
 from vintix.memory import ensure_fits
-from vintix.tasks import TaskSpec, action_box, get_task, make_env
+from vintix.tasks import TaskSpec, action_space_of, get_task, make_env
 from vintix.tasks.custom import custom_specs
 
 DEFAULT_ENVS_PER_BATCH = 16
@@ -210,17 +210,21 @@ class _Block:
     reward: np.ndarray
     step_num: np.ndarray
     noise: np.ndarray
-    """Uniform noise of each history for these steps, drawn from its own RNG in one call per block."""
+    """Uniform noise of each history for these steps, drawn from its own RNG in one call per block (a discrete
+    task's: two uniform [0, 1) draws per step, `epsilon_greedy`'s coin and random action)."""
     episode_end: np.ndarray
     """0, or how the episode ended at this step (`vintix.data.hdf5.TERMINATED`, ...)"""
     final_observation: np.ndarray
     """the observation the env returned after an episode's last step (meaningful where `episode_end`)"""
 
     @classmethod
-    def empty(cls, steps: int, histories: int, obs_dim: int, act_dim: int) -> _Block:
-        return cls(np.empty((steps, histories, obs_dim), np.float32), np.empty((steps, histories, act_dim), np.float32),
-                   np.empty((steps, histories, act_dim), np.float32), np.empty((steps, histories), np.float32),
-                   np.empty((steps, histories), np.int64), np.empty((steps, histories, act_dim)),
+    def empty(cls, steps: int, histories: int, obs_dim: int, act_dim: int, discrete: bool = False) -> _Block:
+        # A discrete task's actions are one index per step.
+        action_shape, action_dtype = ((), np.int64) if discrete else ((act_dim,), np.float32)
+        return cls(np.empty((steps, histories, obs_dim), np.float32),
+                   np.empty((steps, histories, *action_shape), action_dtype),
+                   np.empty((steps, histories, *action_shape), action_dtype), np.empty((steps, histories), np.float32),
+                   np.empty((steps, histories), np.int64), np.empty((steps, histories, 2 if discrete else act_dim)),
                    np.zeros((steps, histories), np.int8), np.zeros((steps, histories, obs_dim), np.float32))
 
     def write(self, steps: int, writers: Sequence[LearningHistoryWriter]) -> None:
@@ -245,7 +249,7 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
         schedules = _history_schedules(plan, envs, demonstrator, [s.pilot_noise for s in seeds],
                                        f"{label} pilot", progress_position)
         writers = [LearningHistoryWriter(history_path(root, spec, i), spec.obs_dim, spec.act_dim,
-                                         demonstrator_actions=True, episode_ends=True,
+                                         demonstrator_actions=True, episode_ends=True, discrete=spec.discrete,
                                          attrs=plan.recorded_settings(i) | schedule.recorded())
                    for i, schedule in zip(indices, schedules, strict=True)]
         # One column per history only when pilots gave them schedules of their own: a 1M-step batch of 16
@@ -306,23 +310,34 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
     if learner is not None:
         learner.begin(envs, demonstrator_rngs)
     total = len(epsilons)
-    space = action_box(envs[0].action_space)
-    low, high = space.low, space.high
+    space = action_space_of(envs[0].action_space)
+    discrete = isinstance(space, gym.spaces.Discrete)
+    # A discrete task's "bounds" are its first and last action, and its noise two uniform draws (`epsilon_greedy`).
+    low: np.ndarray
+    high: np.ndarray
+    if isinstance(space, gym.spaces.Discrete):
+        low, high = np.zeros(1), np.full(1, int(space.n) - 1)
+    else:
+        low, high = space.low, space.high
     observations = np.stack([env.reset()[0] for env in envs])
-    block = _Block.empty(min(BLOCK_STEPS, total), len(envs), observations.shape[1], len(low))
+    block = _Block.empty(min(BLOCK_STEPS, total), len(envs), observations.shape[1], len(low), discrete)
     step_nums = np.zeros(len(envs), dtype=np.int64)
     for t in tqdm(range(total), desc=label, position=progress_position, leave=False, mininterval=1.0, disable=None):
         k = t % len(block.step_num)
         if k == 0:
             size = min(len(block.step_num), total - t)
             for i, rng in enumerate(rngs):
-                block.noise[:size, i] = rng.uniform(low, high, size=(size, len(low)))
+                block.noise[:size, i] = (rng.random(size=(size, 2)) if discrete
+                                         else rng.uniform(low, high, size=(size, len(low))))
         # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
-        proposal = np.clip(call_plugin(f"{label}: the demonstrator's act", "Fix the demonstrator",
-                                       demonstrator.act, observations, envs), low, high)
-        target = proposal if learner is None else np.clip(learner.expert_act(observations, envs), low, high)
-        # float32 before stepping, so the action stored is exactly the action executed.
-        actions = mix_action(proposal, epsilons[t][:, None], block.noise[k]).astype(np.float32)
+        proposal = _within(call_plugin(f"{label}: the demonstrator's act", "Fix the demonstrator",
+                                       demonstrator.act, observations, envs), low, high, discrete, label)
+        target = proposal if learner is None else _within(learner.expert_act(observations, envs), low, high, discrete,
+                                                          label)
+        if discrete:
+            actions = epsilon_greedy(proposal, epsilons[t], block.noise[k], int(high[0]) + 1)
+        else:  # float32 before stepping, so the action stored is exactly the action executed.
+            actions = mix_action(proposal, epsilons[t][:, None], block.noise[k]).astype(np.float32)
         block.observation[k], block.action[k], block.demonstrator_action[k] = observations, actions, target
         block.step_num[k] = step_nums
         for i, env in enumerate(envs):
@@ -343,6 +358,18 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
             observations[i] = next_obs
         if k == len(block.step_num) - 1 or t == total - 1:
             on_block(block, t - k, k + 1)
+
+
+def _within(actions: np.ndarray, low: np.ndarray, high: np.ndarray, discrete: bool, label: str) -> np.ndarray:
+    """A demonstrator's actions inside the action bounds: a Box's clipped; a Discrete's must be its indices, since
+    rounding an action that is not one would record a choice the demonstrator never made."""
+    if not discrete:
+        return np.clip(actions, low, high)
+    indices = np.asarray(actions).reshape(-1)
+    if indices.dtype.kind not in "iu" or indices.min() < 0 or indices.max() > high[0]:
+        raise CollectionError(f"{label}: the demonstrator's actions {indices[:8].tolist()} are not indices 0-"
+                              f"{int(high[0])} of the task's Discrete({int(high[0]) + 1}) space; fix the demonstrator")
+    return indices.astype(np.int64)
 
 
 def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[str]:
@@ -457,7 +484,8 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
         # A task of your own travels with its data, so training and `vintix data` need no registration.
         custom = custom_specs([spec.name])
         write_task_metadata(task_directory(root, spec.domain, spec.name), spec.name, spec.obs_dim, spec.act_dim,
-                            domain=spec.domain, group=spec.group, reward_scale=spec.reward_scale,
+                            discrete=spec.discrete, domain=spec.domain, group=spec.group,
+                            reward_scale=spec.reward_scale,
                             noise_free_fraction=plan.schedule.noise_free_fraction,
                             **({"custom_task": custom[spec.name]} if custom else {}))
         jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)

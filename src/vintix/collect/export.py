@@ -31,7 +31,7 @@ from minari.data_collector import EpisodeBuffer
 from vintix.collect.noise import NoiseSchedule
 from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
 from vintix.errors import VintixError
-from vintix.tasks import TaskSpec, action_box, find_task, gymnasium_id, make_env
+from vintix.tasks import TaskSpec, action_space_of, find_task, gymnasium_id, make_env
 
 
 def check_dataset_id(dataset_id: str) -> None:
@@ -81,12 +81,16 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
         dataset = minari.create_dataset_from_buffers(
             dataset_id, episodes, env=env_spec, eval_env=env_spec, author=author, author_email=author_email,
             code_permalink=code_permalink, observation_space=observation_space, action_space=action_space,
-            algorithm_name="vintix continuous noise distillation",
+            algorithm_name=f"vintix {'ε-greedy' if data.discrete else 'continuous'} noise distillation",
             description=description or f"Learning histories of {data.task_name} from {Path(root).name}: a "
-                                       "demonstrator's actions mixed with uniform noise annealed from 1 to 0.",
+                                       f"demonstrator's actions {NOISE[data.discrete]} annealed from 1 to 0.",
         )
     dataset.storage.update_episode_metadata(metadata)
     return dataset
+
+
+NOISE = {False: "mixed with uniform noise", True: "replaced by uniformly random ones with a probability"}
+"""How a history's noise enters its actions, by whether they are discrete (the description of an export)."""
 
 
 def _env_spec(spec: TaskSpec | None) -> gym.envs.registration.EnvSpec | None:
@@ -102,16 +106,17 @@ def _env_spec(spec: TaskSpec | None) -> gym.envs.registration.EnvSpec | None:
     return gym.spec(name)
 
 
-def _spaces(spec: TaskSpec | None, data: TaskData) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+def _spaces(spec: TaskSpec | None, data: TaskData) -> tuple[gym.spaces.Box, gym.spaces.Space]:
     """The task's observation and action spaces, read off one env where this process can make it, else
-    unbounded Boxes of the dataset's dimensions."""
+    unbounded Boxes of the dataset's dimensions (a discrete task's actions: Discrete(action_dim))."""
     if spec is None or spec.domain == "bidexhands":
         unbounded = np.float32(np.inf)
-        return (gym.spaces.Box(-unbounded, unbounded, (data.obs_dim,), np.float32),
-                gym.spaces.Box(-unbounded, unbounded, (data.act_dim,), np.float32))
+        actions = gym.spaces.Discrete(data.act_dim) if data.discrete else \
+            gym.spaces.Box(-unbounded, unbounded, (data.act_dim,), np.float32)
+        return gym.spaces.Box(-unbounded, unbounded, (data.obs_dim,), np.float32), actions
     env = make_env(spec.name)
     try:
-        return env.observation_space, action_box(env.action_space)  # type: ignore[return-value]
+        return env.observation_space, action_space_of(env.action_space)  # type: ignore[return-value]
     finally:
         env.close()
 

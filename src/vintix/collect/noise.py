@@ -95,6 +95,15 @@ class NoiseSchedule:
                    float(attrs.get("noise_free_start_fraction", 0.0)))
 
 
+def epsilon_greedy(expert: np.ndarray, epsilon: np.ndarray, noise: np.ndarray, actions: int) -> np.ndarray:
+    """AD^ε's noise on discrete actions (the discrete form of Algorithm 1): the expert's action, or with probability
+    ε a uniformly random one of the `actions`. `noise` ``[..., 2]`` holds two uniform [0, 1) draws per row, the coin
+    and the random action, so a history's noise stream does not depend on its ε."""
+    coin, pick = noise[..., 0], noise[..., 1]
+    random_action = np.minimum((pick * actions).astype(np.int64), actions - 1)
+    return np.where(coin < epsilon, random_action, expert).astype(np.int64)
+
+
 def mix_action(expert: np.ndarray, epsilon: float | np.ndarray, noise: np.ndarray) -> np.ndarray:
     """`(1 − ε)·expert + ε·u` for `noise` u drawn uniformly inside the action bounds (ε a number, or one
     per row as a column); with the expert action inside them too, the blend (a convex combination)

@@ -12,6 +12,10 @@ inclusive), each with ``proprio_observation`` float32 (n, obs_dim), ``action`` f
 ``reward`` float32 (n,) and ``step_num`` int32 (n,). Row i is (o_i, a_i taken at o_i, r_i after a_i);
 ``step_num == 0`` marks an episode start and a file starts with one.
 
+**Discrete actions** (our extension; the release is continuous only): a task whose JSON says ``action_type:
+"discrete"`` stores ``action`` as int32 (n,), one index in [0, action_dim) per row, where ``action_dim`` is the
+number of actions of its ``Discrete`` space.
+
 Optionally a group also holds ``demonstrator_action`` float32 (n, act_dim): the action the demonstrator
 proposed at o_i before noise was mixed in (the field the Vintix II dataset adds; its loader also reads
 the spellings ``expert_action`` and ``demonstrator_actions``, and so do we). Files without it, such as
@@ -76,6 +80,11 @@ DEMONSTRATOR_ACTION = "demonstrator_action"
 
 DEMONSTRATOR_ACTION_SPELLINGS = (DEMONSTRATOR_ACTION, "demonstrator_actions", "expert_action")
 
+DISCRETE_ACTION_DTYPE = np.dtype(np.int32)
+"""The dtype of a discrete task's actions (and demonstrator actions): int32 (n,), one index per row."""
+ACTION_TYPES = ("continuous", "discrete")
+"""A task JSON's ``action_type``: the release's 'continuous', or our extension 'discrete'."""
+
 EPISODE_END_ROW, EPISODE_END_KIND, FINAL_OBSERVATION = "episode_end_row", "episode_end_kind", "final_observation"
 """Optional per-group datasets (§3.6 of docs/data-format.md): the rows that end an episode, how each ended,
 and the observation the env returned after it, which a row-per-step history otherwise never stores"""
@@ -85,9 +94,24 @@ EPISODE_END_DATASETS = (EPISODE_END_ROW, EPISODE_END_KIND, FINAL_OBSERVATION)
 """Names under which histories store it (ours first, then the other names the Vintix II loader reads)."""
 
 
-def official_dtype(dataset: str) -> np.dtype:
-    """The dtype of a dataset of a step group; demonstrator actions, under any spelling, are actions."""
+def official_dtype(dataset: str, discrete: bool = False) -> np.dtype:
+    """The dtype of a dataset of a step group; demonstrator actions, under any spelling, are actions, and a discrete
+    history's actions are int32."""
+    if discrete and dataset not in ("proprio_observation", "reward", "step_num"):
+        return DISCRETE_ACTION_DTYPE
     return DTYPES.get(dataset, DTYPES["action"])
+
+
+def dims_text(obs_dim: int, act_dim: int, discrete: bool) -> str:
+    """``(obs_dim, act_dim) = (3, 2)``, or for a discrete task ``(obs_dim, actions) = (2, 5), discrete``: how errors
+    name a task's or a file's dims."""
+    return f"(obs_dim, actions) = ({obs_dim}, {act_dim}), discrete" if discrete else \
+        f"(obs_dim, act_dim) = ({obs_dim}, {act_dim})"
+
+
+def is_action_dataset(dataset: str) -> bool:
+    """Whether `dataset` holds actions (the executed ones, or the demonstrator's under any spelling)."""
+    return dataset == "action" or dataset in DEMONSTRATOR_ACTION_SPELLINGS
 
 PathLike = str | os.PathLike[str]
 
@@ -182,9 +206,29 @@ class Layout:
     groups: list[GroupSpan]
     obs_dim: int | None
     act_dim: int | None
+    """action channels of a continuous history; None for a discrete one (its file does not say how many actions
+    there are: its task JSON does) or where groups disagree"""
     problems: list[str]
     demonstrator_action: str | None = None
     """On-disk name of the demonstrator actions, which every group holds; None if the file has none."""
+    discrete: bool = False
+    """whether the history stores discrete actions: integer (n,) where a continuous one stores float (n, act_dim)"""
+
+    def mismatch(self, obs_dim: int, act_dim: int, discrete: bool) -> str | None:
+        """Why this history cannot be one of a task with these dims and kind of action, or None."""
+        if self.obs_dim is None:
+            return None  # groups that disagree: reported as a problem of their own
+        kind = "discrete" if self.discrete else "continuous"
+        if self.discrete != discrete:
+            return (f"holds {kind} actions but its task is {'discrete' if discrete else 'continuous'} (its JSON's "
+                    "action_type); the file belongs to another task, or the json is wrong")
+        held = (self.obs_dim, self.act_dim) if not discrete else (self.obs_dim,)
+        declared = (obs_dim, act_dim) if not discrete else (obs_dim,)
+        if held != declared:
+            what = "(obs_dim, act_dim)" if not discrete else "(obs_dim,)"
+            return (f"holds {what} = {held} but the task json declares {declared}; the file belongs to another task, "
+                    "or the json is wrong")
+        return None
 
 
 def parse_group_name(name: str) -> tuple[int, int] | None:
@@ -204,20 +248,26 @@ def demonstrator_action_name(group: h5py.Group) -> str | None:
     return next((name for name in DEMONSTRATOR_ACTION_SPELLINGS if isinstance(group.get(name), h5py.Dataset)), None)
 
 
-def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, int, int] | None:
-    """(rows, obs_dim, act_dim) of a step group, or None (with the problem logged) if it is unusable."""
+def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, int, int | None] | None:
+    """(rows, obs_dim, act_dim) of a step group (act_dim None: discrete actions, integers of shape (n,)), or None
+    (with the problem logged) if it is unusable."""
     datasets = {key: group.get(key) for key in DTYPES}
     missing = [key for key, ds in datasets.items() if not isinstance(ds, h5py.Dataset)]
     if missing:
         log.add("missing", f"group {name!r} lacks dataset(s) {missing}", _REBUILD)
         return None
     obs, act, rew, step = (datasets[key].shape for key in DTYPES)
-    ranks_ok = len(obs) == len(act) == 2 and len(rew) == len(step) == 1
+    discrete = len(act) == 1 and datasets["action"].dtype.kind in "iu"
+    if len(act) == 1 and not discrete:
+        log.add("discrete action dtype", f"group {name!r} stores one action per row as {datasets['action'].dtype}: "
+                "a discrete task's actions are integer indices (int32)", _REBUILD)
+        return None
+    ranks_ok = len(obs) == 2 and len(act) == (1 if discrete else 2) and len(rew) == len(step) == 1
     if not (ranks_ok and obs[0] == act[0] == rew[0] == step[0]):
         log.add(
             "shape",
             f"group {name!r} has dataset shapes obs {obs}, action {act}, reward {rew}, step_num {step}; "
-            "expected (n, obs_dim), (n, act_dim), (n,), (n,)",
+            "expected (n, obs_dim), (n, act_dim) (a discrete task: integer (n,)), (n,), (n,)",
             _REBUILD,
         )
         return None
@@ -231,7 +281,7 @@ def _group_shape(name: str, group: h5py.Group, log: ProblemLog) -> tuple[int, in
         log.add("demonstrator shape", f"group {name!r} has {demonstrator} of shape {group[demonstrator].shape}, "
                 f"expected the action's {act}", _REBUILD)
         return None
-    return step[0], obs[1], act[1]
+    return step[0], obs[1], None if discrete else act[1]
 
 
 def _declares_unwritten_rows(dataset: h5py.Dataset) -> bool:
@@ -257,7 +307,7 @@ def inspect_layout(file: h5py.File) -> Layout:
     log = ProblemLog()
     groups: list[GroupSpan] = []
     claimed: list[GroupSpan] = []  # usable groups plus broken ones by name, so a broken group is not also a gap
-    dims: set[tuple[int, int]] = set()
+    dims: set[tuple[int, int | None]] = set()
     demonstrator_names: set[str | None] = set()
     for name, item in file.items():
         span = parse_group_name(name)
@@ -276,7 +326,9 @@ def inspect_layout(file: h5py.File) -> Layout:
         groups.append(GroupSpan(name, span[0], span[0] + rows))
         claimed.append(groups[-1])
     if len(dims) > 1:
-        log.add("dims", f"groups disagree on (obs_dim, act_dim): {sorted(dims)}", f"it mixes tasks; {_REBUILD}")
+        shown = sorted(dims, key=str)
+        log.add("dims", f"groups disagree on (obs_dim, act_dim) (None: discrete): {shown}",
+                f"it mixes tasks; {_REBUILD}")
     if len(demonstrator_names) > 1:
         found = sorted(str(n) for n in demonstrator_names)
         log.add("demonstrator", f"groups disagree on their demonstrator-action dataset ({', '.join(found)}); a history "
@@ -293,7 +345,8 @@ def inspect_layout(file: h5py.File) -> Layout:
     groups.sort(key=lambda g: g.start)
     agreed_obs_dim, agreed_act_dim = next(iter(dims)) if len(dims) == 1 else (None, None)
     demonstrator = next(iter(demonstrator_names)) if len(demonstrator_names) == 1 else None
-    return Layout(groups, agreed_obs_dim, agreed_act_dim, log.messages(), demonstrator)
+    discrete = len(dims) == 1 and agreed_act_dim is None
+    return Layout(groups, agreed_obs_dim, agreed_act_dim, log.messages(), demonstrator, discrete)
 
 
 # --------------------------------------------------------------------------------------------
@@ -367,12 +420,13 @@ class LearningHistoryWriter:
     ``attrs`` become root attributes of the file (e.g. ``env_seed``, which says which env, and so
     which Meta-World hidden goal, the history was collected on); readers of the official format
     ignore them. With ``demonstrator_actions=True`` every append also takes the demonstrator's
-    action before noise, stored as the optional ``demonstrator_action`` dataset.
+    action before noise, stored as the optional ``demonstrator_action`` dataset. With ``discrete=True`` the task
+    has `act_dim` discrete actions: each row's action is one integer index in [0, act_dim), stored as int32 (n,).
     """
 
     def __init__(self, path: PathLike, obs_dim: int, act_dim: int, chunk_size: int = MAX_GROUP_ROWS,
                  attrs: dict[str, int | float | str | list[float]] | None = None,
-                 demonstrator_actions: bool = False, episode_ends: bool = False) -> None:
+                 demonstrator_actions: bool = False, episode_ends: bool = False, discrete: bool = False) -> None:
         self.path = Path(path)
         if self.path.suffix != ".h5":
             raise DatasetError(self.path, "history files must end in .h5 (find_tasks looks for *.h5); rename it")
@@ -382,14 +436,17 @@ class LearningHistoryWriter:
         if not (_is_dim(chunk_size) and chunk_size <= MAX_GROUP_ROWS):
             raise DatasetError(self.path, f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got "
                                f"{chunk_size!r}")
-        self.obs_dim, self.act_dim, self.chunk_size = obs_dim, act_dim, chunk_size
+        self.obs_dim, self.act_dim, self.chunk_size, self.discrete = obs_dim, act_dim, chunk_size, discrete
         self._partial = partial_path(self.path)
         # Rows wait in fixed buffers of one group, so single-step appends cost a copy, not an HDF5 write.
-        trailing = {"proprio_observation": (obs_dim,), "action": (act_dim,), "reward": (), "step_num": ()}
-        self._buffer = {key: np.empty((chunk_size, *trailing[key]), dtype) for key, dtype in DTYPES.items()}
+        self._action_shape: tuple[int, ...] = () if discrete else (act_dim,)
+        trailing = {"proprio_observation": (obs_dim,), "action": self._action_shape, "reward": (), "step_num": ()}
+        self._buffer = {key: np.empty((chunk_size, *trailing[key]), official_dtype(key, discrete))
+                        for key in DTYPES}
         self.demonstrator_actions = demonstrator_actions
         if demonstrator_actions:
-            self._buffer[DEMONSTRATOR_ACTION] = np.empty((chunk_size, act_dim), DTYPES["action"])
+            self._buffer[DEMONSTRATOR_ACTION] = np.empty((chunk_size, *self._action_shape),
+                                                         official_dtype(DEMONSTRATOR_ACTION, discrete))
         self.episode_ends = episode_ends
         if episode_ends:  # per row here; only the rows that end an episode are written (`_flush`)
             self._buffer[EPISODE_END_KIND] = np.empty(chunk_size, np.int8)
@@ -463,23 +520,32 @@ class LearningHistoryWriter:
             disk_names[DEMONSTRATOR_ACTION] = DEMONSTRATOR_ACTION
         single = given["observation"].ndim == 1
         lead = () if single else given["observation"].shape[:1]
-        expected = {"observation": (*lead, self.obs_dim), "action": (*lead, self.act_dim),
-                    "reward": lead, "step_num": lead, DEMONSTRATOR_ACTION: (*lead, self.act_dim)}
+        expected = {"observation": (*lead, self.obs_dim), "action": (*lead, *self._action_shape),
+                    "reward": lead, "step_num": lead, DEMONSTRATOR_ACTION: (*lead, *self._action_shape)}
         for name, values in given.items():
             if values.shape != expected[name]:
+                kind = (f"{self.act_dim} discrete actions: one integer per step" if self.discrete
+                        else f"act_dim={self.act_dim}")
                 raise DatasetError(
                     self.path,
                     f"append() got {name} of shape {values.shape}, expected {expected[name]} "
-                    f"(obs_dim={self.obs_dim}, act_dim={self.act_dim}; one step: 1-D observation, batch: 2-D)",
+                    f"(obs_dim={self.obs_dim}, {kind}; one step: 1-D observation, batch: 2-D)",
                 )
-            wanted = ("iu", "an integer") if name == "step_num" else ("iuf", "a real")
+            integer = name == "step_num" or (self.discrete and is_action_dataset(name))
+            wanted = ("iu", "an integer") if integer else ("iuf", "a real")
             if values.dtype.kind not in wanted[0]:
-                raise DatasetError(self.path, f"append() got {name} of dtype {values.dtype}, expected {wanted[1]} one")
+                why = " (a discrete task's actions are indices)" if integer and name != "step_num" else ""
+                raise DatasetError(self.path, f"append() got {name} of dtype {values.dtype}, expected {wanted[1]} "
+                                   f"one{why}")
             if name != "step_num" and not np.isfinite(values).all():
                 raise DatasetError(
                     self.path, f"append() got NaN/inf in {name}; the environment or policy diverged, fix it first"
                 )
-        rows = {disk: (given[key][None] if single else given[key]).astype(official_dtype(disk))
+            outside = values.size and not (0 <= values.min() and values.max() < self.act_dim)
+            if integer and name != "step_num" and outside:
+                raise DatasetError(self.path, f"append() got {name} {int(values.min())}..{int(values.max())}, outside "
+                                   f"the task's {self.act_dim} actions 0-{self.act_dim - 1}")
+        rows = {disk: (given[key][None] if single else given[key]).astype(official_dtype(disk, self.discrete))
                 for key, disk in disk_names.items()}
         breaks = step_num_breaks(rows["step_num"], self._last_step)
         if len(breaks):
@@ -635,10 +701,14 @@ class LearningHistory:
         return self.layout.obs_dim
 
     @property
-    def act_dim(self) -> int:
-        """Action size."""
-        assert self.layout.act_dim is not None
+    def act_dim(self) -> int | None:
+        """Action channels; None for a discrete history (its task JSON says how many actions there are)."""
         return self.layout.act_dim
+
+    @property
+    def discrete(self) -> bool:
+        """Whether the history stores discrete actions (int32 indices)."""
+        return self.layout.discrete
 
     @property
     def has_demonstrator_action(self) -> bool:
@@ -718,7 +788,7 @@ class LearningHistory:
                                            "not as numbers; run `vintix data validate` and re-collect the history")
                     parts[key].append(group[disk][lo:hi])
         # Cast so callers always get the official dtypes, even from a file that validation would flag.
-        return {key: np.concatenate(parts[key]).astype(official_dtype(disk), copy=False)
+        return {key: np.concatenate(parts[key]).astype(official_dtype(disk, self.layout.discrete), copy=False)
                 for key, disk in fields.items()}
 
     def close(self) -> None:
@@ -758,13 +828,15 @@ def metadata_path(task_dir: PathLike) -> Path:
     return task_dir / f"{task_dir.name}.json"
 
 
-def write_task_metadata(task_dir: PathLike, task_name: str, obs_dim: int, act_dim: int, **extra: Any) -> Path:
-    """Write the task JSON atomically (extra keys such as ``reward_scale`` or ``group`` are kept)."""
+def write_task_metadata(task_dir: PathLike, task_name: str, obs_dim: int, act_dim: int, discrete: bool = False,
+                        **extra: Any) -> Path:
+    """Write the task JSON atomically (extra keys such as ``reward_scale`` or ``group`` are kept); `discrete`: the
+    task has `act_dim` discrete actions (``action_type`` 'discrete', our extension)."""
     clash = set(extra) & set(_REQUIRED_KEYS)
     if clash:
         raise ValueError(f"extra metadata keys {sorted(clash)} would overwrite required ones; pass them as arguments")
     meta = {"task_name": task_name, "observation_shape": {"proprio": [obs_dim]}, "action_dim": act_dim,
-            "action_type": "continuous", **extra}
+            "action_type": "discrete" if discrete else "continuous", **extra}
     path = metadata_path(task_dir)
     atomic_write_text(path, json.dumps(meta, indent=2) + "\n")
     return path
@@ -791,7 +863,7 @@ def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
             isinstance(proprio, list) and len(proprio) == 1 and _is_dim(proprio[0])
         ),
         "action_dim must be a positive integer": _is_dim(meta["action_dim"]),
-        "action_type must be 'continuous'": meta["action_type"] == "continuous",
+        "action_type must be 'continuous' (or 'discrete', vintix's extension)": meta["action_type"] in ACTION_TYPES,
     }
     for rule, ok in checks.items():
         if not ok:
@@ -839,8 +911,14 @@ class TaskData:
     task_name: str
     obs_dim: int
     act_dim: int
+    """action channels, or a discrete task's number of actions"""
     metadata: dict[str, Any] = field(repr=False)
     history_paths: list[Path] = field(repr=False)
+
+    @property
+    def discrete(self) -> bool:
+        """Whether the task's JSON declares discrete actions."""
+        return bool(self.metadata["action_type"] == "discrete")
 
 
 def find_tasks(root: PathLike) -> list[TaskData]:

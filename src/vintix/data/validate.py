@@ -31,6 +31,7 @@ from vintix.data.hdf5 import (
     LearningHistory,
     PathLike,
     ProblemLog,
+    dims_text,
     find_tasks,
     history_paths,
     inspect_layout,
@@ -44,8 +45,9 @@ from vintix.data.hdf5 import (
     translate_hdf5_errors,
 )
 
-ExpectedDims = Callable[[str], tuple[int, int] | None]
-"""task_name -> (obs_dim, act_dim) from the task registry, or None for a task it does not know."""
+ExpectedDims = Callable[[str], tuple[int, int] | tuple[int, int, bool] | None]
+"""task_name -> (obs_dim, act_dim) from the task registry, with ``True`` third for a discrete task (whose act_dim
+is its number of actions; a pair is a continuous task), or None for a task it does not know."""
 EpisodeLimit = Callable[[str], int | None]
 """task_name -> the most steps one of its episodes can have (the registry's episode length), or None."""
 
@@ -79,17 +81,19 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None,
     """Problems of one task folder: its JSON, leftovers of interrupted writes, and every history."""
     task_dir = Path(task_dir)
     problems: list[Problem] = []
-    dims, task_name, limit = None, None, None
+    dims, task_name, limit, discrete = None, None, None, False
     try:
         meta = read_task_metadata(task_dir)
-        dims, task_name = metadata_dims(meta), meta["task_name"]
+        dims, task_name, discrete = metadata_dims(meta), meta["task_name"], meta["action_type"] == "discrete"
         limit = episode_limit(task_name) if episode_limit else None
-        registry = expected_dims(meta["task_name"]) if expected_dims else None
-        if registry is not None and tuple(registry) != dims:
+        expected = expected_dims(meta["task_name"]) if expected_dims else None
+        registry = None if expected is None else (*expected[:2], len(expected) == 3 and bool(expected[2]))
+        if registry is not None and registry != (*dims, discrete):
             problems.append(Problem(
                 metadata_path(task_dir),
-                f"task {meta['task_name']!r} declares (obs_dim, act_dim) = {dims} but the task registry expects "
-                f"{tuple(registry)}; check the environment version (MuJoCo -v4 and -v5 dims differ) or fix the json",
+                f"task {meta['task_name']!r} declares {dims_text(*dims, discrete)} but the task registry expects "
+                f"{dims_text(*registry).partition(' = ')[2]}; check the environment version (MuJoCo -v4 and -v5 dims "
+                "differ) or fix the json",
             ))
     except DatasetError as err:
         problems.append(Problem(err.path, err.problem))
@@ -98,7 +102,7 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None,
     if not histories:
         problems.append(Problem(task_dir, "no learning histories (*.h5); collect some or remove the folder"))
     for path in histories:
-        problems += [Problem(path, message) for message in validate_history(path, dims, task_name, limit)]
+        problems += [Problem(path, message) for message in validate_history(path, dims, task_name, limit, discrete)]
     return problems
 
 
@@ -112,10 +116,11 @@ def task_mismatch(recorded: object, task: str | None) -> str | None:
 
 
 def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: str | None = None,
-                     episode_limit: int | None = None) -> list[str]:
-    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares, `task`
-    the task its folder holds (our files record the task they were collected on; published ones do not)
-    and `episode_limit` the most steps an episode of that task can have."""
+                     episode_limit: int | None = None, discrete: bool = False) -> list[str]:
+    """Problems of one history file; ``dims`` is the (obs_dim, act_dim) its task JSON declares (`discrete`: act_dim
+    is the number of actions, and each row's action an index below it), `task` the task its folder holds (our files
+    record the task they were collected on; published ones do not) and `episode_limit` the most steps an episode of
+    that task can have."""
     path = Path(path)
     messages: list[str] = []
     try:
@@ -123,24 +128,27 @@ def validate_history(path: PathLike, dims: tuple[int, int] | None = None, task: 
             layout = inspect_layout(file)
             messages += layout.problems
             messages += [m for m in [task_mismatch(file.attrs.get("task"), task)] if m]
-            if dims is not None and layout.obs_dim is not None and (layout.obs_dim, layout.act_dim) != dims:
-                messages.append(
-                    f"holds (obs_dim, act_dim) = ({layout.obs_dim}, {layout.act_dim}) but the task json declares "
-                    f"{dims}; the file belongs to another task, or the json is wrong"
-                )
-            messages += _check_contents(file, layout, episode_limit)
+            mismatch = None if dims is None else layout.mismatch(*dims, discrete)
+            messages += [mismatch] if mismatch else []
+            actions = dims[1] if dims is not None and discrete and mismatch is None else None
+            messages += _check_contents(file, layout, episode_limit, actions)
     except DatasetError as err:
         messages.append(err.problem)
     return messages
 
 
-def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None = None) -> list[str]:
+def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None = None,
+                    actions: int | None = None) -> list[str]:
     """Official dtypes, group sizes, finite values and step_num counting, group by group in step order
-    (demonstrator actions, when the file has them, are checked like actions)."""
+    (demonstrator actions, when the file has them, are checked like actions); a discrete history's actions
+    must be indices below `actions` (its task's number of actions, when known)."""
     log = ProblemLog()
     recollect = "re-collect the history"
     rewrite = "rewrite it with LearningHistoryWriter, which casts to the official dtypes"
-    real_valued = ["proprio_observation", "action", "reward"] + [n for n in [layout.demonstrator_action] if n]
+    action_names = ["action"] + [n for n in [layout.demonstrator_action] if n]
+    real_valued = ["proprio_observation", "action", "reward"] + action_names[1:]
+    if layout.discrete:  # integers are finite; their range is what can be wrong
+        real_valued = ["proprio_observation", "reward"]
     previous_stop, last_step = 0, -1
     starts: list[np.ndarray] = []  # per group, where step_num is 0 (an episode starts)
     recorded: list[tuple[np.ndarray, np.ndarray] | None] = []  # per group, (absolute end rows, kinds) if stored
@@ -151,12 +159,21 @@ def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None =
         group = file[name]
         if rows > MAX_GROUP_ROWS:
             log.add("size", f"group {name!r} holds {rows} rows, more than {MAX_GROUP_ROWS}", rewrite)
-        for key in [*DTYPES, *real_valued[3:]]:
-            if group[key].dtype != official_dtype(key):
-                where = f"{key} is {group[key].dtype} in group {name!r}, expected {official_dtype(key)}"
+        stored = [*DTYPES, *action_names[1:]]
+        for key in stored:
+            if group[key].dtype != official_dtype(key, layout.discrete):
+                expected = official_dtype(key, layout.discrete)
+                where = f"{key} is {group[key].dtype} in group {name!r}, expected {expected}"
                 log.add(f"dtype {key}", where, rewrite)
-        if any(group[key].dtype.kind not in NUMERIC_KINDS for key in [*DTYPES, *real_valued[3:]]):
+        if any(group[key].dtype.kind not in NUMERIC_KINDS for key in stored):
             continue  # values that are not numbers (bytes, strings) cannot be checked as numbers; reported above
+        if layout.discrete and actions is not None:
+            for key in action_names:
+                values = group[key][()]
+                outside = (values < 0) | (values >= actions)
+                if outside.any():
+                    log.add(f"range {key}", f"{key} {int(values[outside][0])} at row {offset + np.argmax(outside)} is "
+                            f"outside the task's {actions} actions (0-{actions - 1})", recollect, int(outside.sum()))
         for key in real_valued:
             bad_rows = ~np.isfinite(group[key][()]).reshape(rows, -1).all(axis=1)
             if bad_rows.any():

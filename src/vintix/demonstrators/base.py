@@ -25,11 +25,13 @@ class Demonstrator(Protocol):
         ...
 
 
-BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample")
+BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample", "learner", "posterior-search")
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
 rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
-probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert)."""
+probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert).
+'learner' and 'posterior-search' (the discrete benchmarks only, `vintix.demonstrators.icrl`): an RL algorithm
+learning from scratch, AD's own histories; the goal posterior searched nearest cell first."""
 PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
 AIMS = ("hand", "gripper-centre")
@@ -75,6 +77,20 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
                           "(a trained Stable-Baselines3 or sbx:ALGO:PATH.zip model)")
     if behaviour not in BEHAVIOURS:
         raise VintixError(f"unknown demonstrator behaviour {behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
+    if spec.domain == "icrl":
+        from vintix.demonstrators.icrl import ICRL_BEHAVIOURS, icrl_demonstrator
+
+        if behaviour not in ICRL_BEHAVIOURS or weights is not None or aim != "hand" or reward_tolerance:
+            raise VintixError(f"{spec.name!r} is a discrete benchmark: its demonstrators play as "
+                              f"{', '.join(ICRL_BEHAVIOURS)} (vintix.demonstrators.icrl) and take no weights, aim or "
+                              f"reward_tolerance; got behaviour {behaviour!r}")
+        if behaviour == "posterior-search" and spec.group == "bernoulli-bandit":
+            raise VintixError(f"{spec.name!r}: posterior-search walks a room's cells; on a bandit use "
+                              "posterior-sampling (Thompson sampling)")
+        return icrl_demonstrator(behaviour)
+    if behaviour in ("learner", "posterior-search"):
+        raise VintixError(f"{spec.name!r}: behaviour {behaviour!r} exists for the discrete benchmarks (domain icrl: "
+                          "Dark Room, Key-to-Door, the bandit); choose another")
     if behaviour != "expert":
         from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator, posterior_settings
 

@@ -49,6 +49,9 @@ class EvalConfig:
     """the reward fed back to the model: 'true' (the env's), 'zero' (0.0) or 'shuffled' (at each step one
     drawn at random from the rewards the env's current episode has returned so far); returns, success
     and scores always come from the true rewards (the reward-use ablation). A prompt keeps its stored rewards"""
+    greedy: bool = False
+    """act on the argmax of a discrete group's logits (a gaussian policy's mean) instead of a draw; by default the
+    policy samples, as AD and DPT evaluate (a greedy policy on a flat distribution never explores)"""
 
     def __post_init__(self) -> None:
         # Checked before any env runs: shots=0 used to crash only after the whole evaluation.

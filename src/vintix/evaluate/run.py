@@ -37,7 +37,7 @@ from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
 from vintix.evaluate.summary import best_k_plateau
 from vintix.model.model import Vintix
-from vintix.tasks import DOMAINS, TaskSpec, action_box, find_task, get_task, make_env, resolve_tasks
+from vintix.tasks import DOMAINS, TaskSpec, action_space_of, find_task, get_task, make_env, resolve_tasks
 from vintix.tasks.custom import custom_specs
 from vintix.tasks.registry import has_hidden_goal
 from vintix.tasks.scores import Reference, missing_reference_note, reference
@@ -171,11 +171,13 @@ class RewardFeed:
 
 
 def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], shots: int,
-               progress: bool = False, first_rewards: np.ndarray | None = None) -> list[list[Episode]]:
+               progress: bool = False, first_rewards: np.ndarray | None = None,
+               greedy: bool = False) -> list[list[Episode]]:
     """Step `envs` (the agent already reset for them) until each has finished `shots` episodes; an
     env that has is dropped from the agent's batch (`Agent.keep`). `feeds[i]` turns env i's rewards
     into the ones the agent is fed; episode returns and success are the env's own. `first_rewards`: the
-    reward of the step before the first (a prompt's last; zeros for a cold start)."""
+    reward of the step before the first (a prompt's last; zeros for a cold start). `greedy`: act on the
+    argmax of a discrete group's logits (a gaussian policy's mean), not a draw."""
     n = len(envs)
     observations = [env.reset()[0] for env in envs]
     rewards = np.zeros(n) if first_rewards is None else np.asarray(first_rewards, np.float64).copy()
@@ -186,7 +188,7 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
     bar = tqdm(total=n * shots, desc="episodes", disable=None if progress else True, leave=False)
     active = list(range(n))  # the envs still playing, in the agent's batch order
     while active:
-        actions = agent.act([observations[i] for i in active], rewards[active], starts[active])
+        actions = agent.act([observations[i] for i in active], rewards[active], starts[active], deterministic=greedy)
         for i, action in zip(active, actions, strict=True):
             observation, reward, terminated, truncated, info = envs[i].step(action)
             returns[i] += reward
@@ -257,14 +259,15 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
                  for (spec, seed), p in zip(batch, prompts, strict=True)]
     envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
     try:
-        agent.reset([spec.name for spec, _ in batch], [action_box(env.action_space) for env in envs],
+        agent.reset([spec.name for spec, _ in batch], [action_space_of(env.action_space) for env in envs],
                     discard_context=True)  # each batch is a new run
+        optimal = [optimal_return(env) for env in envs]
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
         feeds = [RewardFeed(config.reward_input, seed) for _, seed in batch]
         last_prompt_rewards = None if prompts is None else np.array([p.rows["reward"][-1] for p in prompts])
-        results = play_shots(agent, envs, feeds, config.shots, progress, last_prompt_rewards)
+        results = play_shots(agent, envs, feeds, config.shots, progress, last_prompt_rewards, config.greedy)
     finally:
         for env in envs:
             env.close()
@@ -273,10 +276,17 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
          "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
          "reward_input": config.reward_input,
          "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
-         "success": "" if e.success is None else e.success}
-        for (spec, seed), task, episodes in zip(batch, tasks, results, strict=True)
+         "success": "" if e.success is None else e.success, "optimal": "" if best is None else best}
+        for (spec, seed), task, episodes, best in zip(batch, tasks, results, optimal, strict=True)
         for shot, e in enumerate(episodes)
     ]
+
+
+def optimal_return(env: Any) -> float | None:
+    """The most an episode of `env` can return under its own hidden goal (the discrete benchmarks, whose scores
+    are fractions of it), or None for an env that does not say."""
+    optimal = getattr(env.unwrapped, "optimal_return", None)
+    return None if optimal is None else float(optimal())
 
 
 def references(tasks: Sequence[str]) -> tuple[dict[str, dict[str, Reference | None]], list[str]]:
@@ -293,7 +303,8 @@ def add_normalized_scores(rows: list[dict[str, Any]], refs: dict[str, dict[str, 
     for row in rows:
         for table, by_task in refs.items():
             ref = by_task[row["task"]]
-            row[f"normalized_{table}"] = "" if ref is None else float(ref.normalize(row["return"]))
+            optimal = row.get("optimal") if row.get("optimal") != "" else None
+            row[f"normalized_{table}"] = "" if ref is None else float(ref.normalize(row["return"], optimal))
 
 
 def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) -> tuple[Path, Path]:

@@ -5,6 +5,11 @@ output at that token predicts ``a_t`` (paper §2.3). Tasks with the same observa
 channel meaning share a *group*: one encoder set and one action head. The model sees the group and,
 through normalization only, the task; it never gets a task identifier it could condition on.
 
+A group acts in a continuous Box (its head gives the action, or a Gaussian's mean and log-std) or in a
+Discrete space of n actions (AD's and DPT's home: Dark Room, bandits): its previous action comes in as an
+index whose one-hot code the action encoder's first layer turns into an embedding, and its head gives n
+logits, trained by cross-entropy on the target action. One model may hold groups of both kinds.
+
 Read top to bottom: config and presets, attention with ALiBi, the transformer block, per-group
 encoders and heads, the model, parameter counting.
 """
@@ -173,6 +178,9 @@ class GroupSpec:
     name: str
     obs_dim: int
     act_dim: int
+    """action channels, or a discrete group's number of actions"""
+    discrete: bool = False
+    """whether the group acts in a Discrete space: actions are indices, its head gives act_dim logits"""
 
 
 @dataclass
@@ -495,8 +503,9 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
         self.ln_f = nn.LayerNorm(config.d_model)
         self.heads = nn.ModuleDict(
-            {g.name: _action_head(config.d_model, g.act_dim * (2 if config.policy == "gaussian" else 1),
-                                  config.head_layers, config.activation) for g in groups}
+            {g.name: _action_head(config.d_model, g.act_dim * (2 if config.policy == "gaussian" and not g.discrete
+                                                               else 1), config.head_layers, config.activation)
+             for g in groups}
         )
         self.apply(self._init_weights)
         for name, p in self.named_parameters():
@@ -583,9 +592,12 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         spec = self.groups.get(group)
         if spec is None:
             raise ValueError(f"unknown group {group!r}; the model has {sorted(self.groups)}")
-        if obs.shape[-1] != spec.obs_dim or prev_action.shape[-1] != spec.act_dim:
+        action_ok = prev_action.shape == obs.shape[:-1] if spec.discrete else prev_action.shape[-1] == spec.act_dim
+        if obs.shape[-1] != spec.obs_dim or not action_ok:
+            actions = f"{spec.act_dim} discrete actions (prev_action: one index per step)" if spec.discrete else \
+                f"act_dim {spec.act_dim}"
             raise ValueError(
-                f"group {group!r} expects obs_dim {spec.obs_dim} and act_dim {spec.act_dim}, got "
+                f"group {group!r} expects obs_dim {spec.obs_dim} and {actions}, got "
                 f"obs {tuple(obs.shape)} and prev_action {tuple(prev_action.shape)}"
             )
         if (self.task_group[task_idx] != self._group_index[group]).any():
@@ -597,8 +609,12 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         self, group: str, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
         episode_start: torch.Tensor,
     ) -> torch.Tensor:
-        """Tokens of one group from already normalized observations and scaled rewards."""
+        """Tokens of one group from already normalized observations and scaled rewards; a discrete group's
+        `prev_action` holds indices ``[B, T]`` (any at an episode start: the padding replaces it)."""
         encoder = self.encoders[group]
+        spec = self.groups[group]
+        if spec.discrete:
+            prev_action = F.one_hot(prev_action.long().clamp(0, spec.act_dim - 1), spec.act_dim).to(obs.dtype)
         owner = self if self.config.shared_padding else encoder
         act_pad, rew_pad = owner.act_pad, owner.rew_pad
         assert isinstance(act_pad, torch.Tensor)  # the owner has it (and rew_pad unless last_reward)
@@ -620,23 +636,24 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
 
     def action_distribution(self, group: str, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """Mean action ``[B, T, act_dim]`` from backbone outputs, and its log-std for a gaussian policy
-        (None for a deterministic one)."""
+        (None for a deterministic one); a discrete group's logits ``[B, T, actions]`` (and None)."""
         out = self.heads[group](h)
-        if self.config.policy == "deterministic":
+        if self.config.policy == "deterministic" or self.groups[group].discrete:
             return out, None
         mean, log_std = out.chunk(2, dim=-1)
         return mean, log_std.clamp(*LOG_STD_RANGE)
 
     def head(self, group: str, h: torch.Tensor) -> torch.Tensor:
-        """Predicted (mean) actions ``[B, T, act_dim]`` from backbone outputs."""
+        """Predicted (mean) actions ``[B, T, act_dim]`` from backbone outputs (a discrete group: logits)."""
         return self.action_distribution(group, h)[0]
 
     def forward(
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
         prev_reward: torch.Tensor, step_num: torch.Tensor,
     ) -> torch.Tensor:
-        """Predicted a_t for every step: ``obs [B,T,obs_dim]``, ``prev_action [B,T,act_dim]``,
-        ``prev_reward [B,T]``, ``step_num [B,T]`` (step within episode), ``task_idx [B]``."""
+        """Predicted a_t for every step: ``obs [B,T,obs_dim]``, ``prev_action [B,T,act_dim]`` (a discrete group:
+        indices ``[B,T]``, and the output is logits), ``prev_reward [B,T]``, ``step_num [B,T]`` (step within
+        episode), ``task_idx [B]``."""
         x = self.embed(group, task_idx, obs, prev_action, prev_reward, step_num)
         return self.head(group, self.backbone(x))
 

@@ -410,6 +410,11 @@ def export_official(checkpoint: str | os.PathLike[str], out: str | os.PathLike[s
 
     meta = read_metadata(checkpoint)
     model = load_pretrained(checkpoint)
+    discrete = sorted(name for name, group in model.groups.items() if group.discrete)
+    if discrete:  # the authors' code has continuous heads only: the logits of a discrete group would pass as actions
+        raise OfficialFormatError(f"{checkpoint}: group(s) {discrete} act in a discrete space, which the release "
+                                  "format (continuous heads only) cannot hold; keep the vintix checkpoint (vintix "
+                                  "eval, Agent.from_pretrained read it)")
     model_fields = config_to_official(model.config)
     official = meta.get("extra", {}).get("official", {})
     names: dict[str, str] = official.get("task_names", {})

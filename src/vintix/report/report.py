@@ -121,7 +121,8 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
                 by_shot = runs[variant][(int(row["seed"]), row["prompt_steps"])]
                 if shot in by_shot:
                     raise ValueError(f"a second row for {variant}, seed {row['seed']}, shot {shot}")
-                by_shot[shot] = float(ref.normalize(episode_return)), succeeded
+                optimal = float(row["optimal"]) if row.get("optimal") else None
+                by_shot[shot] = float(ref.normalize(episode_return, optimal)), succeeded
             except (ValueError, TypeError) as error:  # a hand-edited or foreign table
                 raise VintixError(f"{episodes}, line {line}: {error}; {rewrite}") from error
             if row.get("reward_input"):

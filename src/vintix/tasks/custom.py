@@ -1,4 +1,4 @@
-"""Your own tasks: any Gymnasium env with a Box action space, registered from outside the package.
+"""Your own tasks: any Gymnasium env with a bounded Box or a Discrete action space, registered from outside the package.
 
 Three ways, all of which every vintix process (every CLI command, every Ray worker) sees:
 
@@ -17,6 +17,7 @@ Three ways, all of which every vintix process (every CLI command, every Ray work
           reward_scale: 0.1          # rewards are multiplied by it before the model sees them
           reference_random: -1200    # mean returns that normalize scores (optional)
           reference_expert: -150
+          action_type: continuous    # or discrete: a Discrete(act_dim) space, actions 0 to act_dim - 1
 
 - a plug-in package: an entry point in the group ``vintix.tasks`` naming a function that registers its
   tasks (``[project.entry-points."vintix.tasks"] mine = "my_package.vintix_tasks:register"``).
@@ -49,13 +50,14 @@ import yaml
 
 from vintix.errors import PluginError, VintixError, call_plugin
 from vintix.tasks import registry
-from vintix.tasks.registry import TaskSpec
+from vintix.tasks.make import action_space_problem
+from vintix.tasks.registry import ACTION_TYPES, TaskSpec
 
 ENV_VARIABLE = "VINTIX_TASKS"
 TRUST_VARIABLE = "VINTIX_TRUST_CODE"
 ENTRY_POINT_GROUP = "vintix.tasks"
 SPEC_FIELDS = ("env_id", "env_factory", "obs_dim", "act_dim", "episode_length", "group", "reward_scale",
-               "reference_random", "reference_expert", "split", "aliases")
+               "reference_random", "reference_expert", "split", "aliases", "action_type")
 """What a tasks file (or `register_task`) may say about a task"""
 
 
@@ -67,15 +69,16 @@ def register_task(
     name: str, *, obs_dim: int, act_dim: int, episode_length: int, env_id: str | None = None,
     env_factory: str | None = None, group: str | None = None, reward_scale: float = 1.0,
     reference_random: float | None = None, reference_expert: float | None = None, split: str = "train",
-    aliases: tuple[str, ...] | list[str] = (),
+    aliases: tuple[str, ...] | list[str] = (), action_type: str = "continuous",
 ) -> TaskSpec:
-    """Add a task of your own to the registry (see this module's docstring); returns its spec. Registering
+    """Add a task of your own to the registry (see this module's docstring); returns its spec; `action_type`
+    'discrete': the env acts in Discrete(act_dim) (actions 0 to act_dim - 1). Registering
     the same spec again is a no-op (and vouches for its code: `code_trusted`); another spec under a taken name
     or alias is a TaskSpecError, as is a group whose other tasks have other dims."""
     spec = build_spec(name, obs_dim=obs_dim, act_dim=act_dim, episode_length=episode_length, env_id=env_id,
                       env_factory=env_factory, group=group, reward_scale=reward_scale,
                       reference_random=reference_random, reference_expert=reference_expert, split=split,
-                      aliases=aliases)
+                      aliases=aliases, action_type=action_type)
     return add_spec(spec)
 
 
@@ -90,7 +93,7 @@ def build_spec(
     name: str, *, obs_dim: int, act_dim: int, episode_length: int, env_id: str | None = None,
     env_factory: str | None = None, group: str | None = None, reward_scale: float = 1.0,
     reference_random: float | None = None, reference_expert: float | None = None, split: str = "train",
-    aliases: tuple[str, ...] | list[str] = (), source: str | None = None,
+    aliases: tuple[str, ...] | list[str] = (), source: str | None = None, action_type: str = "continuous",
 ) -> TaskSpec:
     """A custom task's spec, checked against itself (not yet against the registry); `source`: the file it came
     from, named in errors."""
@@ -104,6 +107,8 @@ def build_spec(
         got = ", ".join(bad) or f"split={split!r}, reward_scale={reward_scale}"
         raise TaskSpecError(f"task {name!r}: obs_dim, act_dim and episode_length must be integers >= 1, split train "
                             f"or test, reward_scale > 0; got {got}")
+    if action_type not in ACTION_TYPES:
+        raise TaskSpecError(f"task {name!r}: action_type must be one of {', '.join(ACTION_TYPES)}, got {action_type!r}")
     if (reference_random is None) != (reference_expert is None) or (
             reference_random is not None and reference_expert is not None and not reference_expert > reference_random):
         raise TaskSpecError(f"task {name!r}: give both reference_random and reference_expert (expert above random) "
@@ -115,6 +120,7 @@ def build_spec(
         paper_history_length=0, paper_histories=0, env_id=env_id, env_factory=env_factory,
         reference_random=None if reference_random is None else float(reference_random),
         reference_expert=None if reference_expert is None else float(reference_expert), source=source,
+        action_type=action_type,
     )
 
 
@@ -134,11 +140,13 @@ def check_fits_registry(spec: TaskSpec) -> None:
             raise TaskSpecError(f"task {spec.name!r}{_from(spec)}: the name {label!r} is already task {owner!r}"
                                 f"{whose}; choose another name")
     member = next((t for t in registry._tasks().values() if t.group == spec.group and t.name != spec.name), None)
-    if member is not None and (member.obs_dim, member.act_dim) != (spec.obs_dim, spec.act_dim):
+    if member is not None and (member.obs_dim, member.act_dim, member.action_type) != (
+            spec.obs_dim, spec.act_dim, spec.action_type):
         raise TaskSpecError(
-            f"task {spec.name!r}{_from(spec)}: group {spec.group!r} has obs_dim {member.obs_dim} and act_dim "
-            f"{member.act_dim} (task {member.name!r}{_from(member)}), this task {spec.obs_dim} and {spec.act_dim}: "
-            "tasks of a group share encoders and a head; give it its own group")
+            f"task {spec.name!r}{_from(spec)}: group {spec.group!r} has obs_dim {member.obs_dim}, act_dim "
+            f"{member.act_dim} and {member.action_type} actions (task {member.name!r}{_from(member)}), this task "
+            f"{spec.obs_dim}, {spec.act_dim} and {spec.action_type}: tasks of a group share encoders and a head; give "
+            "it its own group")
 
 
 def spec_to_json(spec: TaskSpec) -> dict[str, Any]:
@@ -274,9 +282,16 @@ def check_env_fits(spec: TaskSpec, env: gym.Env) -> None:
     if obs_shape != (spec.obs_dim,):
         problems.append(f"observations of shape {obs_shape}, the spec says obs_dim {spec.obs_dim}")
     space = env.action_space
-    if not isinstance(space, gym.spaces.Box) or space.shape != (spec.act_dim,):
-        problems.append(f"action space {space}, the spec says a Box of act_dim {spec.act_dim}")
-    elif not (space.is_bounded("both")):
+    unusable = action_space_problem(space)
+    if unusable is not None:
+        problems.append(unusable)
+    elif spec.discrete and (not isinstance(space, gym.spaces.Discrete) or int(space.n) != spec.act_dim):
+        problems.append(f"action space {space}, the spec says Discrete({spec.act_dim}) (action_type discrete)")
+    elif not spec.discrete and (not isinstance(space, gym.spaces.Box) or space.shape != (spec.act_dim,)):
+        hint = " (a Discrete env: action_type discrete, act_dim its number of actions)" if isinstance(
+            space, gym.spaces.Discrete) else ""
+        problems.append(f"action space {space}, the spec says a Box of act_dim {spec.act_dim}{hint}")
+    elif isinstance(space, gym.spaces.Box) and not space.is_bounded("both"):
         problems.append(f"action space {space} is unbounded; vintix's noise draws uniform actions within bounds")
     if problems:
         env.close()

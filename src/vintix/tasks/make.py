@@ -16,7 +16,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from vintix.errors import MissingDependencyError, UnsupportedOptionError
+from vintix.errors import MissingDependencyError, UnsupportedOptionError, VintixError
 from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, TaskSpec, builtin_tasks, get_task
 
 NAMESPACE = "vintix"
@@ -29,9 +29,9 @@ def gymnasium_id(spec: TaskSpec) -> str:
 
 
 def register_gymnasium_envs() -> None:
-    """Register the Meta-World, Industrial Benchmark and hidden-goal MuJoCo tasks with gymnasium (idempotent). Runs when
-    `vintix.tasks` is imported, so it reads the package's own tasks only: task plug-ins, which may import
-    vintix themselves, load at the first lookup."""
+    """Register the Meta-World, Industrial Benchmark, discrete-benchmark and hidden-goal MuJoCo tasks with gymnasium
+    (idempotent). Runs when `vintix.tasks` is imported, so it reads the package's own tasks only: task plug-ins,
+    which may import vintix themselves, load at the first lookup."""
     for spec in builtin_tasks("metaworld"):
         if gymnasium_id(spec) not in gym.registry:
             gym.register(
@@ -48,6 +48,10 @@ def register_gymnasium_envs() -> None:
                 kwargs={"setpoint": float(spec.name.split("-")[2])},
                 max_episode_steps=spec.episode_length,
             )
+    for spec in builtin_tasks("icrl"):
+        if gymnasium_id(spec) not in gym.registry:
+            gym.register(gymnasium_id(spec), entry_point="vintix.tasks.icrl:icrl_env", kwargs={"name": spec.name},
+                         max_episode_steps=spec.episode_length)
     for spec in builtin_tasks("mujoco"):
         if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and gymnasium_id(spec) not in gym.registry:
             gym.register(
@@ -122,6 +126,10 @@ def _make_toy(spec: TaskSpec, seed: int | None) -> gym.Env:
     return gym.wrappers.TimeLimit(PointGoalEnv(seed), spec.episode_length)
 
 
+def _make_icrl(spec: TaskSpec, seed: int | None) -> gym.Env:
+    return gym.make(gymnasium_id(spec), seed=seed)
+
+
 def _make_custom(spec: TaskSpec, seed: int | None, **env_kwargs: Any) -> gym.Env:
     from vintix.tasks.custom import make_custom_env
 
@@ -134,6 +142,7 @@ _FACTORIES: dict[str, Callable[..., gym.Env]] = {
     "industrial_benchmark": _make_industrial_benchmark,
     "bidexhands": _make_bidexhands,
     "toy": _make_toy,
+    "icrl": _make_icrl,
     "custom": _make_custom,
 }
 
@@ -164,21 +173,68 @@ def make_env(task: str, seed: int | None = None, **options: Any) -> gym.Env:
     return SeedFirstReset(_FACTORIES[spec.domain](spec, seed, **options), seed)
 
 
+ActionSpace = gym.spaces.Box | gym.spaces.Discrete
+
+
+class ActionSpaceError(VintixError, TypeError):
+    """An action space vintix cannot act in (not a bounded Box or a Discrete starting at 0), or of another kind than
+    the task's."""
+
+
+def action_space_problem(space: gym.Space) -> str | None:
+    """Why vintix cannot act in `space`, or None: it acts in a Box (bounded, for the collector's uniform noise) or a
+    Discrete of actions 0 to n - 1. MultiDiscrete, Tuple and the rest are refused: say so, with the way round."""
+    if isinstance(space, gym.spaces.Discrete):
+        if int(space.start) != 0:
+            return (f"{space} starts at {int(space.start)}; vintix's discrete actions are 0 to n - 1 (they index the "
+                    "model's logits): wrap the env to shift its actions (gymnasium.ActionWrapper) to Discrete(n)")
+        return None
+    if isinstance(space, gym.spaces.Box):
+        return None
+    if isinstance(space, gym.spaces.MultiDiscrete):
+        return (f"{space} is MultiDiscrete, which vintix does not support: flatten it into one Discrete of "
+                f"{int(np.prod(space.nvec))} actions (a gymnasium.ActionWrapper), or make each part a task of its own")
+    return f"{space} is neither a Box nor a Discrete action space, the two kinds vintix acts in"
+
+
+def action_space_of(space: gym.Space, discrete: bool | None = None) -> ActionSpace:
+    """`space` as the Box or Discrete it is (gymnasium's envs and SB3's policies type their action space as any
+    `Space`); an ActionSpaceError for any other space, and, given `discrete`, for a space of the other kind."""
+    problem = action_space_problem(space)
+    if problem is not None:
+        raise ActionSpaceError(problem)
+    if discrete is not None and isinstance(space, gym.spaces.Discrete) != discrete:
+        want = "a Discrete" if discrete else "a Box"
+        raise ActionSpaceError(f"expected {want} action space, got {space}: a model's group acts in one kind of space "
+                               "(a discrete group's head gives logits, a continuous one's gives actions)")
+    return space  # type: ignore[return-value]
+
+
 def action_box(space: gym.Space) -> gym.spaces.Box:
-    """`space` as the Box it is: every task of the registry acts in a continuous Box (gymnasium's
-    envs and SB3's policies type their action space as any `Space`)."""
-    if not isinstance(space, gym.spaces.Box):
-        raise TypeError(f"expected a Box action space (every vintix task is continuous control), got {space}")
-    return space
+    """`space` as the Box it is, for code that only continuous control reaches (the noise mixed into a Box action,
+    SB3's continuous demonstrators); a Discrete or other space is an ActionSpaceError."""
+    return action_space_of(space, discrete=False)  # type: ignore[return-value]
 
 
 @cache
 def action_bounds(task: str) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) float32 action bounds of `task`'s env, read off one env (physics variations and seeds
-    leave the action space alone)."""
+    leave the action space alone); a Discrete(n) task's are 0 and n - 1."""
     env = make_env(task)
     try:
-        space = action_box(env.action_space)
+        space = action_space_of(env.action_space)
+        if isinstance(space, gym.spaces.Discrete):
+            return np.zeros(1, np.float32), np.full(1, space.n - 1, np.float32)
         return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+    finally:
+        env.close()
+
+
+@cache
+def task_action_space(task: str) -> ActionSpace:
+    """The action space of `task`'s env, read off one env (seeds and variations leave it alone)."""
+    env = make_env(task)
+    try:
+        return action_space_of(env.action_space)
     finally:
         env.close()

@@ -26,10 +26,14 @@ from typing import Literal
 
 from vintix.errors import UnknownTaskError
 
-Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "custom"]
+Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "icrl", "custom"]
 Split = Literal["train", "test"]
-DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "custom")
-"""'custom': tasks registered from outside the package (`register_task`)"""
+DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "icrl", "custom")
+"""'icrl': the discrete benchmarks in-context RL is measured on (Dark Room, Key-to-Door, bandits; `vintix.tasks.icrl`);
+'custom': tasks registered from outside the package (`register_task`)"""
+ActionType = Literal["continuous", "discrete"]
+ACTION_TYPES: tuple[ActionType, ...] = ("continuous", "discrete")
+"""A task acts in a bounded Box (``act_dim`` channels) or a Discrete space (``act_dim`` actions, 0 to act_dim - 1)."""
 
 PAPER_PROVENANCE = (
     "paper: Vintix (ICML 2025) appendix 'Task-Level Performance'; MuJoCo -v4 names with v5 dims, "
@@ -55,6 +59,7 @@ class TaskSpec:
     """Tasks of a group share observation/action encoders and the action head."""
     obs_dim: int
     act_dim: int
+    """Box tasks: action channels; Discrete tasks: the number of actions"""
     episode_length: int
     """Maximum steps per episode (Bi-DexHands: the paper's mean length, tasks end themselves)."""
     reward_scale: float
@@ -80,9 +85,16 @@ class TaskSpec:
     source: str | None = dataclass_field(default=None, compare=False)
     """custom tasks: the file that registered them (a tasks file, a checkpoint's config...), named in errors;
     None for `register_task` from Python"""
+    action_type: ActionType = "continuous"
+    """'continuous' (a bounded Box) or 'discrete' (a Discrete space of act_dim actions starting at 0)"""
     named_by: str | None = dataclass_field(default=None, compare=False)
     """custom tasks registered from a file a run wrote (a checkpoint's config, a dataset's task JSON), not by
     you: that file. The code its spec names runs only when trusted (`vintix.tasks.custom.code_trusted`)."""
+
+    @property
+    def discrete(self) -> bool:
+        """Whether the task acts in a Discrete space."""
+        return self.action_type == "discrete"
 
     @property
     def episode_limit(self) -> int | None:
@@ -131,9 +143,9 @@ HIDDEN_GOAL_MUJOCO_TASKS = ("Reacher-hidden-v5",)
 
 
 def has_hidden_goal(spec: TaskSpec) -> bool:
-    """Whether `spec`'s env keeps a goal it never shows, drawn from its seed (Meta-World, the toy,
-    Reacher-hidden-v5): the tasks an evaluation's goal protocol is about."""
-    return spec.domain in ("metaworld", "toy") or spec.name in HIDDEN_GOAL_MUJOCO_TASKS
+    """Whether `spec`'s env keeps a goal it never shows, drawn from its seed (Meta-World, the toy, the discrete
+    benchmarks, Reacher-hidden-v5): the tasks an evaluation's goal protocol is about."""
+    return spec.domain in ("metaworld", "toy", "icrl") or spec.name in HIDDEN_GOAL_MUJOCO_TASKS
 
 
 def _hidden_goal_mujoco_tasks() -> list[TaskSpec]:
@@ -148,7 +160,9 @@ def _hidden_goal_mujoco_tasks() -> list[TaskSpec]:
 def _builtin_tasks() -> dict[str, TaskSpec]:
     table = resources.files("vintix.tasks").joinpath("paper_tasks.csv").read_text()
     paper = list(map(_spec_from_row, csv.DictReader(table.splitlines())))
-    return {spec.name: spec for spec in paper + _toy_tasks() + _hidden_goal_mujoco_tasks()}
+    from vintix.tasks.icrl import icrl_task_specs
+
+    return {spec.name: spec for spec in paper + _toy_tasks() + _hidden_goal_mujoco_tasks() + icrl_task_specs()}
 
 
 def builtin_tasks(domain: str) -> list[TaskSpec]:

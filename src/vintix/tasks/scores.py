@@ -48,6 +48,9 @@ class Reference:
     random: float
     expert: float
     provenance: str
+    per_goal: bool = False
+    """whether a return is first divided by its run's own optimal return (the discrete benchmarks, whose best
+    return depends on where the hidden goal is): the score is then the fraction of the optimal"""
 
     def __post_init__(self) -> None:
         # expert ≤ random would flip or blow up every score (and expert == random would make every
@@ -58,9 +61,18 @@ class Reference:
                 "such a reference cannot normalize scores: re-measure the demonstrator or use the other table"
             )
 
-    def normalize(self, returns: float | np.ndarray) -> np.ndarray:
-        """Normalized score(s) of episode return(s)."""
-        return (np.asarray(returns, dtype=np.float64) - self.random) / (self.expert - self.random)
+    def normalize(self, returns: float | np.ndarray, optimal: float | np.ndarray | None = None) -> np.ndarray:
+        """Normalized score(s) of episode return(s); a `per_goal` reference needs each run's `optimal` return."""
+        returns = np.asarray(returns, dtype=np.float64)
+        if self.per_goal:
+            if optimal is None:
+                raise ReferenceScoreError(f"{self.provenance}: a score needs the run's optimal return, which this "
+                                          "result table lacks (its 'optimal' column); re-run `vintix eval`")
+            returns = returns / np.asarray(optimal, dtype=np.float64)
+        return (returns - self.random) / (self.expert - self.random)
+
+
+OPTIMAL_PROVENANCE = "the optimal return of the run's own hidden goal (vintix.tasks.icrl)"
 
 
 def check_table(table: str) -> str:
@@ -78,6 +90,8 @@ def reference(task: str, table: str = "paper") -> Reference | None:
         if spec.reference_random is None or spec.reference_expert is None:
             return None
         return Reference(spec.reference_random, spec.reference_expert, "registered with the task")
+    if spec.domain == "icrl":  # no published table: the optimal return of each run's own hidden goal
+        return None if table == "paper" else Reference(0.0, 1.0, OPTIMAL_PROVENANCE, per_goal=True)
     if table == "paper":
         if spec.paper_random is None or spec.paper_expert is None:
             return None  # not a task of the paper

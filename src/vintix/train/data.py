@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from vintix.atomic import atomic_write_text
-from vintix.data.hdf5 import LearningHistory, TaskData, find_tasks
+from vintix.data.hdf5 import LearningHistory, TaskData, dims_text, find_tasks
 from vintix.data.validate import task_mismatch, validate_history
 from vintix.errors import DatasetError, UnknownTaskError, VintixError
 from vintix.model.model import GroupSpec, TaskNorm
@@ -90,7 +90,8 @@ def check_histories(task: TaskData) -> None:
     """Refuse a task any of whose histories `vintix data validate` would flag (one full read)."""
     limit = _registry_spec(task).episode_limit
     problems = [f"{path.name}: {message}" for path in task.history_paths
-                for message in validate_history(path, (task.obs_dim, task.act_dim), task.task_name, limit)]
+                for message in validate_history(path, (task.obs_dim, task.act_dim), task.task_name, limit,
+                                                task.discrete)]
     if problems:
         shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
         raise TrainingDataError(
@@ -266,7 +267,7 @@ def _tail_fraction(task: TaskData, expert_distillation: bool, expert_tail_fracti
 
 def _registry_groups(specs: Sequence[TaskSpec]) -> list[GroupSpec]:
     """One GroupSpec per group, with the registry's dims (each task's data was checked against them)."""
-    return [GroupSpec(spec.group, spec.obs_dim, spec.act_dim)
+    return [GroupSpec(spec.group, spec.obs_dim, spec.act_dim, spec.discrete)
             for spec in sorted({s.group: s for s in specs}.values(), key=lambda s: s.group)]
 
 
@@ -275,11 +276,8 @@ def _histories(task: TaskData) -> list[LearningHistory]:
     for h in histories:
         if mismatch := task_mismatch(h.attrs.get("task"), task.task_name):
             raise DatasetError(h.path, f"{mismatch}; run `vintix data validate`")
-        if (h.obs_dim, h.act_dim) != (task.obs_dim, task.act_dim):
-            raise DatasetError(
-                h.path, f"holds obs {h.obs_dim} / act {h.act_dim} but its task JSON says obs {task.obs_dim} / act "
-                f"{task.act_dim}; run `vintix data validate`"
-            )
+        if mismatch := h.layout.mismatch(task.obs_dim, task.act_dim, task.discrete):
+            raise DatasetError(h.path, f"{mismatch}; run `vintix data validate`")
     return histories
 
 
@@ -353,10 +351,11 @@ def _registry_spec(task: TaskData) -> TaskSpec:
             f"{task.task_dir}: task {task.task_name!r} is not in the task registry, so its group and reward scale are "
             f"unknown ({error}); rename task_name in its JSON to a registry name or leave the folder out"
         ) from error
-    if (task.obs_dim, task.act_dim) != (spec.obs_dim, spec.act_dim):
+    if (task.obs_dim, task.act_dim, task.discrete) != (spec.obs_dim, spec.act_dim, spec.discrete):
         raise TrainingDataError(
-            f"{task.task_dir}: task {task.task_name!r} declares (obs_dim, act_dim) = ({task.obs_dim}, {task.act_dim}) "
-            f"but the task registry's {spec.name} (group {spec.group!r}) has ({spec.obs_dim}, {spec.act_dim}); the "
+            f"{task.task_dir}: task {task.task_name!r} declares {dims_text(task.obs_dim, task.act_dim, task.discrete)} "
+            f"but the task registry's {spec.name} (group {spec.group!r}) has "
+            f"{dims_text(spec.obs_dim, spec.act_dim, spec.discrete).partition(' = ')[2]}; the "
             "folder holds another env version's or another task's data (MuJoCo -v4 and -v5 dims differ). Fix its "
             "JSON and histories or leave the folder out; `vintix data validate` flags it too"
         )

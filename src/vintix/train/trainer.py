@@ -81,7 +81,8 @@ class NonFiniteLossError(VintixError, RuntimeError):
 
 
 class WindowLoss(nn.Module):
-    """Per-window MSE (a gaussian policy: negative log-likelihood) of a micro-batch that may mix groups.
+    """Per-window MSE (a gaussian policy: negative log-likelihood; a discrete group: cross-entropy) of a
+    micro-batch that may mix groups.
 
     Each group's windows go through their own encoder, all windows through one backbone call, then
     each group's head. Wrapping this (not the model) in DDP makes the whole mixed-group pass one
@@ -101,6 +102,10 @@ class WindowLoss(nn.Module):
         for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True):
             mean, log_std = self.model.action_distribution(group, part)
             target = batch[group]["action"]
+            if self.model.groups[group].discrete:  # logits [B, T, n] against indices [B, T]
+                loss = F.cross_entropy(mean.float().transpose(1, 2), target.long(), reduction="none")
+                losses.append(loss.mean(dim=1))
+                continue
             if log_std is None:
                 loss = F.mse_loss(mean.float(), target, reduction="none")
             else:  # a gaussian policy: negative log-likelihood (up to a constant)

@@ -1,0 +1,154 @@
+"""The discrete benchmarks (`vintix.tasks.icrl`) as AD, AD^ε and DPT define them, and their demonstrators."""
+
+import numpy as np
+import pytest
+
+from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.data import LearningHistory
+from vintix.demonstrators import load_demonstrator
+from vintix.errors import VintixError
+from vintix.tasks import get_task, list_tasks, make_env
+from vintix.tasks.icrl import START, goal_split, pair_split
+
+
+def play(env, actions):
+    """Rewards of `actions` from a reset, and whether the last step ended the episode."""
+    env.reset()
+    rewards, done = [], False
+    for action in actions:
+        _, reward, terminated, truncated, _ = env.step(action)
+        rewards.append(reward)
+        done = terminated or truncated
+    return rewards, done
+
+
+def path_to(target, start=START):
+    """Actions from `start` to `target`: along x, then y (0 stay, 1 up, 2 down, 3 left, 4 right)."""
+    dx, dy = target[0] - start[0], target[1] - start[1]
+    return [4 if dx > 0 else 3] * abs(dx) + [1 if dy > 0 else 2] * abs(dy)
+
+
+def test_the_domain_registers_seven_discrete_tasks_whose_held_out_goals_are_a_split_task():
+    tasks = {t.name: t for t in list_tasks(domain="icrl")}
+    assert set(tasks) == {"DarkRoom-v0", "DarkRoom-heldout-v0", "DarkRoomHard-v0", "DarkRoomHard-heldout-v0",
+                          "KeyToDoor-v0", "KeyToDoor-heldout-v0", "BernoulliBandit-v0"}
+    assert all(t.discrete for t in tasks.values())
+    assert (tasks["DarkRoom-v0"].act_dim, tasks["DarkRoom-v0"].episode_length) == (5, 20)
+    assert tasks["DarkRoom-heldout-v0"].split == "test" and tasks["DarkRoom-v0"].split == "train"
+    assert get_task("Reacher-v5").action_type == "continuous"
+
+
+def test_dark_room_splits_its_81_goals_65_to_16_and_key_to_door_holds_out_a_fifth_of_the_pairs():
+    train, test = goal_split()
+    assert (len(train), len(test)) == (65, 16)
+    assert len({tuple(g) for g in np.concatenate([train, test])}) == 81
+    train_pairs, test_pairs = pair_split()
+    assert len(test_pairs) == int(0.2 * 81 * 80)
+    assert not {tuple(p) for p in train_pairs} & {tuple(p) for p in test_pairs}
+    held_out_goals = {tuple(make_env("DarkRoom-heldout-v0", seed=s).unwrapped.true_goal) for s in range(200)}
+    assert held_out_goals <= {tuple(g) for g in test}
+
+
+def test_dark_room_pays_one_on_every_step_on_the_goal_from_the_centre_and_its_optimum_counts_them():
+    env = make_env("DarkRoom-v0", seed=7)
+    goal = env.unwrapped.true_goal
+    observation, _ = env.reset()
+    assert tuple(observation) == START
+    route = path_to(goal)
+    rewards, done = play(env, route + [0] * (20 - len(route)))
+    assert done and sum(rewards) == env.unwrapped.optimal_return() == 20 - len(route) + 1
+    assert rewards[len(route) - 1:] == [1.0] * (21 - len(route))
+
+
+def test_dark_room_hard_pays_once_and_key_to_door_pays_the_key_then_the_door_which_ends_the_episode():
+    hard = make_env("DarkRoomHard-v0", seed=7)
+    route = path_to(hard.unwrapped.true_goal)
+    rewards, _ = play(hard, route + [0] * (20 - len(route)))
+    assert sum(rewards) == 1.0 == hard.unwrapped.optimal_return()
+    env = make_env("KeyToDoor-v0", seed=3)
+    key, door = env.unwrapped.true_goal
+    rewards, done = play(env, path_to(door))  # the door without the key pays nothing
+    assert sum(rewards) == 0 and not done
+    rewards, done = play(env, path_to(key) + path_to(door, key))
+    assert rewards.count(1.0) == 2 and sum(rewards) == 2.0 and done
+
+
+def test_a_hidden_goal_is_drawn_from_the_seed_and_kept_across_resets():
+    for task in ("DarkRoom-v0", "KeyToDoor-v0", "BernoulliBandit-v0"):
+        env = make_env(task, seed=11)
+        first = env.unwrapped.true_goal
+        env.reset()
+        env.reset()
+        assert np.array_equal(env.unwrapped.true_goal, first)
+        assert np.array_equal(make_env(task, seed=11).unwrapped.true_goal, first)
+    goals = {tuple(make_env("DarkRoom-v0", seed=s).unwrapped.true_goal) for s in range(100)}
+    assert len(goals) > 30
+
+
+def test_the_bandit_pays_each_arm_at_its_hidden_mean():
+    env = make_env("BernoulliBandit-v0", seed=5)
+    means = env.unwrapped.true_goal
+    env.reset()
+    pulls = {arm: [] for arm in range(5)}
+    for step in range(5000):
+        arm = step % 5
+        _, reward, _, truncated, _ = env.step(arm)
+        pulls[arm].append(reward)
+        if truncated:
+            env.reset()
+    assert np.allclose([np.mean(pulls[a]) for a in range(5)], means, atol=0.05)
+
+
+def test_an_action_outside_the_space_is_an_error_naming_it():
+    env = make_env("DarkRoom-v0", seed=0)
+    env.reset()
+    with pytest.raises(ValueError, match="not in Discrete"):
+        env.step(5)
+
+
+def normalized_returns(root, task, episodes=25):
+    """[histories, episodes] returns of the first `episodes` episodes of a collected task's histories, each divided
+    by its goal's optimum (Key-to-Door's episodes end at the door, so its histories hold more of them)."""
+    rows = []
+    for path in sorted((root / "icrl" / task).glob("*.h5")):
+        history = LearningHistory(path)
+        optimal = make_env(task, seed=history.env_seed).unwrapped.optimal_return()
+        rows.append(history.episode_returns()[:episodes] / optimal)
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("task", ["DarkRoom-v0", "DarkRoomHard-v0", "KeyToDoor-v0", "BernoulliBandit-v0"])
+def test_the_reward_inferring_demonstrator_reaches_the_optimum_within_a_few_episodes_without_the_goal(task, tmp_path):
+    steps = 30 * get_task(task).episode_length
+    collect(CollectionPlan(task, histories=10, steps=steps, behaviour="posterior-sampling",
+                           schedule=NoiseSchedule(noise_free_fraction=1.0)), tmp_path)
+    returns = normalized_returns(tmp_path, task)
+    assert returns[:, 0].mean() < 0.7  # it has to search first...
+    assert returns[:, 15:].mean() >= (0.85 if task == "BernoulliBandit-v0" else 0.99)  # ...then it has found it
+
+
+def test_ad_eps_histories_rise_from_random_to_optimal_and_record_the_experts_action(tmp_path):
+    collect(CollectionPlan("DarkRoom-v0", histories=10, steps=1200, schedule=NoiseSchedule(noise_free_fraction=0.1)),
+            tmp_path)
+    returns = normalized_returns(tmp_path, "DarkRoom-v0", 59)
+    assert returns[:, :5].mean() < 0.2 and returns[:, -5:].mean() == 1.0
+    history = LearningHistory(next((tmp_path / "icrl" / "DarkRoom-v0").glob("*.h5")))
+    rows = history.read(0, 1200, demonstrator_action=True)
+    assert rows["action"].dtype == np.int32 and rows["action"].shape == (1200,)
+    tail = slice(1100, 1200)  # noise-free: the executed action is the expert's
+    assert np.array_equal(rows["action"][tail], rows["demonstrator_action"][tail])
+    assert (rows["action"][:100] != rows["demonstrator_action"][:100]).mean() > 0.5  # ε near 1: mostly random
+
+
+def test_ads_learner_improves_over_its_history(tmp_path):
+    collect(CollectionPlan("DarkRoom-v0", histories=10, steps=2000, behaviour="learner",
+                           schedule=NoiseSchedule(noise_free_fraction=1.0)), tmp_path)
+    returns = normalized_returns(tmp_path, "DarkRoom-v0", 99)
+    assert returns[:, :10].mean() < 0.3 and returns[:, -10:].mean() > 0.7
+
+
+def test_the_discrete_benchmarks_take_their_own_behaviours_only():
+    with pytest.raises(VintixError, match="discrete benchmark"):
+        load_demonstrator("DarkRoom-v0", behaviour="probe-then-sample")
+    with pytest.raises(VintixError, match="'learner'"):
+        load_demonstrator("reach-v3", behaviour="learner")
