@@ -8,8 +8,8 @@ it: only the rewards reveal it, so a model that ignores them cannot beat a goal-
 - **Dark Room** (``DarkRoom-v0``): a 9×9 grid, the agent starts at the centre (4, 4) every episode and observes
   its position ``(x, y)``; 5 actions (0 stay, 1 up, 2 down, 3 left, 4 right; a move into the wall stays);
   20-step episodes; reward 1 on every step that ends on the goal. 81 goals, split as AD^ε does: 65 train, 16
-  test. ``DarkRoom-v0`` draws its goal from the 65, ``DarkRoom-heldout-v0`` from the 16 (a task of its own, so
-  training data and held-out goals can never mix).
+  test (its very cells, `AD_EPS_TEST_GOALS`). ``DarkRoom-v0`` draws its goal from the 65, ``DarkRoom-heldout-v0``
+  from the 16 (a task of its own, so training data and held-out goals can never mix).
 - **Dark Room Hard** (``DarkRoomHard-v0``, ``DarkRoomHard-heldout-v0``): the same room, reward 1 only the first
   time an episode reaches the goal.
 - **Key-to-Door** (``KeyToDoor-v0``, ``KeyToDoor-heldout-v0``): the same room and actions, a hidden key and a
@@ -45,9 +45,13 @@ BANDIT_ARMS = 5
 BANDIT_PULLS = 10
 """Pulls per bandit episode."""
 SPLIT_SEED = 0
-"""Seed of the fixed train/test split of goals (Dark Room) and of (key, door) pairs (Key-to-Door)."""
-HELD_OUT_GOALS = 16
+"""Seed of the fixed train/test split of (key, door) pairs (Key-to-Door)."""
 HELD_OUT_PAIR_FRACTION = 0.2
+AD_EPS_TEST_GOALS = ((7, 0), (7, 6), (4, 1), (3, 2), (0, 1), (5, 7), (2, 3), (0, 2), (2, 5), (8, 3), (8, 2), (2, 2),
+                     (6, 6), (7, 8), (1, 5), (5, 6))
+"""AD^ε's 16 test goals of Dark Room: the last 16 of the 81 cells permuted by ``np.random.permutation`` after
+``np.random.seed(42)`` (corl-team/ad-eps, ``utils/misc.py::train_test_goals`` with ``eval_seed`` 42), as its
+``(row, column)`` positions; ours read them as ``(x, y)``, the same cells of a room whose start is its centre."""
 
 
 def cells() -> np.ndarray:
@@ -57,10 +61,10 @@ def cells() -> np.ndarray:
 
 @cache
 def goal_split() -> tuple[np.ndarray, np.ndarray]:
-    """(train goals [65, 2], held-out goals [16, 2]): AD^ε's 65/16 split of the 81 cells, a fixed permutation."""
-    order = np.random.default_rng(SPLIT_SEED).permutation(SIZE * SIZE)
+    """(train goals [65, 2], held-out goals [16, 2]): AD^ε's 65/16 split of the 81 cells (`AD_EPS_TEST_GOALS`)."""
     every = cells()
-    return every[np.sort(order[HELD_OUT_GOALS:])], every[np.sort(order[:HELD_OUT_GOALS])]
+    held_out = np.array([tuple(c) in AD_EPS_TEST_GOALS for c in every])
+    return every[~held_out], every[held_out]
 
 
 @cache
