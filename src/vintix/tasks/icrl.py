@@ -2,7 +2,8 @@
 
 They are the home of Algorithm Distillation (Laskin et al., 2022), AD^ε (Zisman et al., 2024, whose noise
 distillation Vintix extends) and DPT (Lee et al., 2023). Each hides what the agent must find (a goal cell, a key
-and a door, the arms' means), draws it from the env's seed once and keeps it for the env's life, and never shows
+and a door, the arms' means), draws it from the env's seed once (a room: goal ``seed mod`` the number of goals,
+`pick`) and keeps it for the env's life, and never shows
 it: only the rewards reveal it, so a model that ignores them cannot beat a goal-blind policy.
 
 - **Dark Room** (``DarkRoom-v0``): a 9×9 grid, the agent starts at the centre (4, 4) every episode and observes
@@ -78,6 +79,12 @@ def pair_split() -> tuple[np.ndarray, np.ndarray]:
     return pairs[np.sort(order[held:])], pairs[np.sort(order[:held])]
 
 
+def pick(seed: int | None, count: int) -> int:
+    """Which of `count` goals (or pairs) an env of seed `seed` hides: ``seed mod count``, so that consecutive seeds
+    play every held-out goal once (seeds 100-115: each of Dark Room's 16); a random one without a seed."""
+    return int(np.random.default_rng().integers(count)) if seed is None else seed % count
+
+
 def step_towards(position: np.ndarray, target: np.ndarray) -> np.ndarray:
     """The shortest-path action(s) from `position` to `target` (``[..., 2]`` each): along x first, then y, stay on
     it. Vectorized, so a batch of envs (or of candidate goals) takes one call."""
@@ -151,7 +158,7 @@ class DarkRoomEnv(GridEnv):
 
     def _draw(self, seed: int | None) -> None:
         goals = goal_split()[1 if self.held_out else 0]
-        self._goal = goals[np.random.default_rng(seed).integers(len(goals))]
+        self._goal = goals[pick(seed, len(goals))]
 
     def _begin_episode(self) -> None:
         self._paid = False
@@ -189,7 +196,7 @@ class KeyToDoorEnv(GridEnv):
 
     def _draw(self, seed: int | None) -> None:
         pairs = pair_split()[1 if self.held_out else 0]
-        key, door = pairs[np.random.default_rng(seed).integers(len(pairs))]
+        key, door = pairs[pick(seed, len(pairs))]
         self._key, self._door = cells()[key], cells()[door]
 
     def _begin_episode(self) -> None:
