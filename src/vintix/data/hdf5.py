@@ -103,9 +103,9 @@ def official_dtype(dataset: str, discrete: bool = False) -> np.dtype:
 
 
 def dims_text(obs_dim: int, act_dim: int, discrete: bool) -> str:
-    """``(obs_dim, act_dim) = (3, 2)``, or for a discrete task ``(obs_dim, actions) = (2, 5), discrete``: how errors
-    name a task's or a file's dims."""
-    return f"(obs_dim, actions) = ({obs_dim}, {act_dim}), discrete" if discrete else \
+    """``(obs_dim, act_dim) = (3, 2)``, or for a discrete task ``(obs_dim, actions) = (2, 5) with action_type
+    'discrete'``: how errors name a task's or a file's dims."""
+    return f"(obs_dim, actions) = ({obs_dim}, {act_dim}) with action_type 'discrete'" if discrete else \
         f"(obs_dim, act_dim) = ({obs_dim}, {act_dim})"
 
 

@@ -237,7 +237,7 @@ class BernoulliBanditEnv(gym.Env):
     action_space: gym.spaces.Discrete
 
     def __init__(self, seed: int | None = None, arms: int = BANDIT_ARMS, pulls: int = BANDIT_PULLS) -> None:
-        self.observation_space = gym.spaces.Box(0.0, 0.0, shape=(1,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)  # always 0
         self.action_space = gym.spaces.Discrete(arms)
         self.pulls = pulls
         self._steps = 0
