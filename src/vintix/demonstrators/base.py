@@ -31,7 +31,7 @@ rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn 
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert).
 'learner' and 'posterior-search' (the discrete benchmarks only, `vintix.demonstrators.icrl`): an RL algorithm
-learning from scratch, AD's own histories; the goal posterior searched nearest cell first."""
+learning from scratch, AD's own histories; the goal posterior searched along a fixed spiral."""
 PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
 AIMS = ("hand", "gripper-centre")

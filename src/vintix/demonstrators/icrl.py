@@ -9,9 +9,10 @@
   hand), walks to a candidate drawn uniformly from the rest (the posterior, whose prior is every cell), draws
   another once that one is ruled out, and goes straight to what it has found; on the bandit it is Thompson
   sampling (a Beta posterior per arm).
-- ``posterior-search`` (the rooms): the same posterior, searched deterministically: it walks to the nearest cell
-  not ruled out (ties: the first in row order), so its whole behaviour is a function of the rewards so far, with
-  nothing drawn at random for a model to guess.
+- ``posterior-search`` (the rooms): the same posterior, searched in a fixed order: it walks to the first cell not
+  ruled out along a spiral out of the room's centre (`SEARCH_ORDER`), so each episode goes on where the last one
+  stopped, and its whole behaviour is a function of the rewards so far, with nothing drawn at random for a model to
+  guess.
 - ``learner``: AD's own histories, an RL algorithm learning from scratch on the history's env: tabular Q-learning
   in the rooms (its state: the cell and whether the episode has paid yet, which tells Key-to-Door's "key in
   hand" from its own rewards), UCB1 on the bandit (AD's source algorithm there).
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from vintix.tasks.icrl import SIZE, BernoulliBanditEnv, DarkRoomEnv, GridEnv, KeyToDoorEnv, cells, step_towards
+from vintix.tasks.icrl import SIZE, START, BernoulliBanditEnv, DarkRoomEnv, GridEnv, KeyToDoorEnv, cells, step_towards
 
 ICRL_BEHAVIOURS = ("expert", "posterior-sampling", "posterior-search", "learner")
 """How a demonstrator plays a discrete benchmark's history (this module's docstring)."""
@@ -60,6 +61,20 @@ CELLS = cells()
 """Each cell's (x, y), by cell index."""
 
 
+def spiral_order() -> np.ndarray:
+    """Cell indices in the order of a spiral out of the room's centre: ring by ring (steps from the centre along the
+    farther axis), each ring walked counter-clockwise from the right of the centre, so that consecutive cells of a
+    ring are neighbours."""
+    offset = CELLS - np.array(START)
+    ring = np.abs(offset).max(axis=1)
+    angle = np.arctan2(offset[:, 1], offset[:, 0]) % (2 * np.pi)  # counter-clockwise from the right
+    return np.lexsort((angle, ring))
+
+
+SEARCH_ORDER = spiral_order()
+"""The order in which `posterior-search` walks the cells its rewards have not ruled out."""
+
+
 def _cell(position: np.ndarray) -> int:
     return int(position[1]) * SIZE + int(position[0])
 
@@ -78,14 +93,15 @@ class _RoomSearch:
     """[2, cells]: row 0 the goal (Key-to-Door: the key), row 1 Key-to-Door's door"""
     found: list[int | None]
     target: list[int | None]
-    nearest: bool = False
-    """walk to the nearest cell not ruled out (``posterior-search``) rather than one drawn at random"""
+    in_order: bool = False
+    """walk to the first cell not ruled out along `SEARCH_ORDER` (``posterior-search``) rather than one drawn at
+    random"""
     paid: bool = False
     """whether this episode has paid yet (Key-to-Door: the key is in hand)"""
 
     @classmethod
-    def new(cls, rng: np.random.Generator, nearest: bool = False) -> _RoomSearch:
-        return cls(rng, np.zeros((2, SIZE * SIZE), bool), [None, None], [None, None], nearest)
+    def new(cls, rng: np.random.Generator, in_order: bool = False) -> _RoomSearch:
+        return cls(rng, np.zeros((2, SIZE * SIZE), bool), [None, None], [None, None], in_order)
 
     def stage(self, env: GridEnv) -> int:
         """0 while looking for the goal (the key), 1 for Key-to-Door's door with the key in hand."""
@@ -97,13 +113,11 @@ class _RoomSearch:
             return _position(self.found[stage])  # type: ignore[arg-type]
         target = self.target[stage]
         if target is None or self.ruled_out[stage, target]:
-            # The posterior is uniform over the cells not ruled out: draw one to walk to, or take the nearest.
-            open_cells = np.flatnonzero(~self.ruled_out[stage])
-            if self.nearest:
-                steps = np.abs(CELLS[open_cells] - env.position).sum(axis=1)
-                target = int(open_cells[np.argmin(steps)])
+            # The posterior is uniform over the cells not ruled out: draw one to walk to, or take the next in order.
+            if self.in_order:
+                target = int(SEARCH_ORDER[np.argmax(~self.ruled_out[stage, SEARCH_ORDER])])
             else:
-                target = int(self.rng.choice(open_cells))
+                target = int(self.rng.choice(np.flatnonzero(~self.ruled_out[stage])))
             self.target[stage] = target
         return _position(target)
 
@@ -124,10 +138,11 @@ class _RoomSearch:
 
 class PosteriorSearchDemonstrator:
     """Infers the hidden goal from its rewards (this module's docstring): in a room, a search over the cells not
-    ruled out, to a candidate drawn at random or (`nearest`) the nearest; on a bandit, Thompson sampling."""
+    ruled out, to a candidate drawn at random or (`in_order`) the next along `SEARCH_ORDER`; on a bandit, Thompson
+    sampling."""
 
-    def __init__(self, nearest: bool = False) -> None:
-        self.nearest = nearest
+    def __init__(self, in_order: bool = False) -> None:
+        self.in_order = in_order
         self._rooms: list[_RoomSearch] = []
         self._arms: list[np.ndarray] = []
         """per bandit history: [arms, 2] successes and failures"""
@@ -135,10 +150,10 @@ class PosteriorSearchDemonstrator:
 
     def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
         self._rngs = list(rngs)
-        if self.nearest and any(isinstance(env.unwrapped, BernoulliBanditEnv) for env in envs):
+        if self.in_order and any(isinstance(env.unwrapped, BernoulliBanditEnv) for env in envs):
             raise ValueError("posterior-search walks a room's cells; on a bandit use posterior-sampling (Thompson "
                              "sampling)")
-        self._rooms = [_RoomSearch.new(rng, self.nearest) for rng in rngs]
+        self._rooms = [_RoomSearch.new(rng, self.in_order) for rng in rngs]
         self._arms = [np.zeros((_actions(env), 2)) for env in envs]
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
@@ -246,6 +261,6 @@ class LearnerDemonstrator:
 def icrl_demonstrator(behaviour: str) -> IcrlExpert | PosteriorSearchDemonstrator | LearnerDemonstrator:
     """The demonstrator of a discrete benchmark that plays as `behaviour` (one of `ICRL_BEHAVIOURS`)."""
     if behaviour == "posterior-search":
-        return PosteriorSearchDemonstrator(nearest=True)
+        return PosteriorSearchDemonstrator(in_order=True)
     return {"expert": IcrlExpert, "posterior-sampling": PosteriorSearchDemonstrator,
             "learner": LearnerDemonstrator}[behaviour]()
