@@ -117,10 +117,14 @@ def normalized_returns(root, task, episodes=25):
     return np.array(rows)
 
 
-@pytest.mark.parametrize("task", ["DarkRoom-v0", "DarkRoomHard-v0", "KeyToDoor-v0", "BernoulliBandit-v0"])
-def test_the_reward_inferring_demonstrator_reaches_the_optimum_within_a_few_episodes_without_the_goal(task, tmp_path):
+@pytest.mark.parametrize(("task", "behaviour"), [
+    ("DarkRoom-v0", "posterior-sampling"), ("DarkRoomHard-v0", "posterior-sampling"),
+    ("KeyToDoor-v0", "posterior-sampling"), ("BernoulliBandit-v0", "posterior-sampling"),
+    ("DarkRoom-heldout-v0", "posterior-search"), ("KeyToDoor-v0", "posterior-search")])
+def test_the_reward_inferring_demonstrator_reaches_the_optimum_within_a_few_episodes_without_the_goal(task, behaviour,
+                                                                                                     tmp_path):
     steps = 30 * get_task(task).episode_length
-    collect(CollectionPlan(task, histories=10, steps=steps, behaviour="posterior-sampling",
+    collect(CollectionPlan(task, histories=10, steps=steps, behaviour=behaviour,
                            schedule=NoiseSchedule(noise_free_fraction=1.0)), tmp_path)
     returns = normalized_returns(tmp_path, task)
     assert returns[:, 0].mean() < 0.7  # it has to search first...
@@ -152,3 +156,5 @@ def test_the_discrete_benchmarks_take_their_own_behaviours_only():
         load_demonstrator("DarkRoom-v0", behaviour="probe-then-sample")
     with pytest.raises(VintixError, match="'learner'"):
         load_demonstrator("reach-v3", behaviour="learner")
+    with pytest.raises(VintixError, match="on a bandit use posterior-sampling"):
+        load_demonstrator("BernoulliBandit-v0", behaviour="posterior-search")
