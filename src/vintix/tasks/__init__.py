@@ -2,7 +2,6 @@
 
 from vintix.tasks.make import (
     ActionSpaceError,
-    action_bounds,
     action_box,
     action_space_of,
     gymnasium_id,
@@ -19,7 +18,6 @@ __all__ = [
     "DOMAINS",
     "ReferenceScore",
     "TaskSpec",
-    "action_bounds",
     "action_box",
     "action_space_of",
     "find_task",

@@ -217,20 +217,6 @@ def action_box(space: gym.Space) -> gym.spaces.Box:
 
 
 @cache
-def action_bounds(task: str) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) float32 action bounds of `task`'s env, read off one env (physics variations and seeds
-    leave the action space alone); a Discrete(n) task's are 0 and n - 1."""
-    env = make_env(task)
-    try:
-        space = action_space_of(env.action_space)
-        if isinstance(space, gym.spaces.Discrete):
-            return np.zeros(1, np.float32), np.full(1, space.n - 1, np.float32)
-        return np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
-    finally:
-        env.close()
-
-
-@cache
 def task_action_space(task: str) -> ActionSpace:
     """The action space of `task`'s env, read off one env (seeds and variations leave it alone)."""
     env = make_env(task)
