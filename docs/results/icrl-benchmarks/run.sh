@@ -6,10 +6,15 @@ set -euo pipefail
 cd "$(dirname "$0")/../../.."
 W=${1:-icrl-benchmarks}
 cell() { scripts/icrl_benchmark.sh "$1" "$2" "$3" "$W/$1"; }
-cell darkroom-search darkroom DarkRoom-heldout-v0
-cell darkroom-posterior darkroom DarkRoom-heldout-v0
-cell darkroom-adeps darkroom DarkRoom-heldout-v0
 cell darkroom-ad darkroom-ad DarkRoom-heldout-v0
+cell darkroom-adeps darkroom DarkRoom-heldout-v0
+cell darkroom-search darkroom-search DarkRoom-heldout-v0
 cell bandit-posterior bandit BernoulliBandit-v0
-cell keytodoor-search keytodoor KeyToDoor-heldout-v0
+# Greedy actions (greedy/ here): the same checkpoints, argmax instead of a draw.
+for source in darkroom-ad darkroom-adeps darkroom-search; do
+  vintix eval --checkpoint "$W/$source/run" --tasks DarkRoom-heldout-v0 --shots 40 --seeds 16 --first-seed 100 --greedy \
+    --out "$W/greedy/$source"
+done
+vintix eval --checkpoint "$W/darkroom-search/run" --tasks DarkRoom-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
+  --greedy --reward-input zero --out "$W/greedy/darkroom-search-zero"
 python scripts/bandit_baselines.py "$W/bandit-posterior/results/true"
