@@ -30,10 +30,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
+
+if TYPE_CHECKING:  # the registry imports this module to build its table
+    from vintix.tasks.registry import TaskSpec
 
 SIZE = 9
 """Cells per side of the room."""
@@ -310,7 +313,7 @@ def icrl_tasks() -> dict[str, IcrlTask]:
     return {task.name: task for task in [*_grid_tasks(), bandit]}
 
 
-def icrl_task_specs() -> list[Any]:
+def icrl_task_specs() -> list[TaskSpec]:
     """The registry's specs of the domain's tasks (no published scores: `vintix.tasks.scores` gives their
     references, the optimal return and a random policy's)."""
     from vintix.tasks.registry import TaskSpec
