@@ -9,6 +9,11 @@ import h5py
 import numpy as np
 import pytest
 
+HANG_GUARD_S = 3600
+"""The timeout of every subprocess a test runs: a guard against a hang only, never a speed check. The longest such
+command (tests/test_icrl_your_env.py's page: about 6.5 minutes on 2 idle cores) runs four times slower with the other
+core busy, and an hour is still twice that."""
+
 
 def child_env(**extra: str) -> dict[str, str]:
     """The environment of a `python -m vintix` child process: this one's, with its import path, so the

@@ -33,7 +33,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
-from conftest import child_env
+from conftest import HANG_GUARD_S, child_env
 from vintix.cli import app
 from vintix.errors import VintixError
 
@@ -1423,7 +1423,7 @@ api_error("agent", "predict with three episode_start flags for two envs", predic
 def python_dash_m() -> str | None:
     env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "industrial_benchmark"],
-                            capture_output=True, text=True, env=env, timeout=120)
+                            capture_output=True, text=True, env=env, timeout=HANG_GUARD_S)
     return None if result.returncode == 0 and "21 tasks" in result.stdout else f"exit {result.returncode}"
 
 

@@ -7,6 +7,7 @@ import sys
 import pytest
 import torch
 
+from conftest import HANG_GUARD_S
 from test_model import make_batch, make_model
 from vintix.errors import DeviceError
 from vintix.memory import OutOfMemoryError
@@ -140,7 +141,7 @@ def test_a_billion_layers_are_refused_from_the_configs_arithmetic_before_one_is_
     (tmp_path / "config.json").write_text(json.dumps({**meta, "config": {**meta["config"], "n_layers": 10**9}}))
     # In a child with a deadline: building 10^9 blocks, even on the meta device, would never end.
     code = f"from vintix.model import load_pretrained; load_pretrained({str(tmp_path)!r})"
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert "OutOfMemoryError: the model this checkpoint describes needs" in result.stderr, result.stderr[-2000:]
 
 
@@ -148,7 +149,7 @@ def test_the_memory_a_process_may_use_counts_its_address_space_limit():
     """Clusters and containers set `ulimit -v`: a size that fits the machine but not the limit is refused too."""
     code = ("import resource; from vintix.memory import available_memory; "
             "resource.setrlimit(resource.RLIMIT_AS, (6 * 2**30, resource.RLIM_INFINITY)); print(available_memory())")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert result.returncode == 0, result.stderr
     assert 0 < int(result.stdout) < 6 * 2**30
 

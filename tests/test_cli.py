@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from conftest import child_env, fill_up
+from conftest import HANG_GUARD_S, child_env, fill_up
 from vintix.cli import app
 
 runner = CliRunner()
@@ -145,11 +145,11 @@ def test_collect_for_a_task_without_demonstrator_says_so_and_writes_nothing(tmp_
 def test_python_dash_m_vintix_runs_the_cli():
     env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "mujoco"],
-                            capture_output=True, text=True, env=env, timeout=120)
+                            capture_output=True, text=True, env=env, timeout=HANG_GUARD_S)
     assert result.returncode == 0, result.stderr
     assert "12 tasks" in result.stdout and "Pusher-v5" in result.stdout  # the paper's 11 and Reacher-hidden-v5
     usage = subprocess.run([sys.executable, "-m", "vintix", "--help"], capture_output=True, text=True, env=env,
-                           timeout=120)
+                           timeout=HANG_GUARD_S)
     assert usage.returncode == 0 and "Usage: vintix" in usage.stdout
 
 

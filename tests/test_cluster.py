@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import HANG_GUARD_S
 from vintix.cli import app
 from vintix.data import LearningHistory
 
@@ -117,7 +118,7 @@ def test_an_address_space_limit_ends_in_a_named_error_not_a_crash_inside_ray(tmp
 
     command = (f"ulimit -v 8000000; {sys.executable} -m vintix eval --checkpoint point-goal --tasks point-goal-v1 "
                f"--shots 1 --seeds 1 --ray auto --out {tmp_path / 'results'}")
-    result = subprocess.run(["bash", "-c", command], capture_output=True, text=True, timeout=300)
+    result = subprocess.run(["bash", "-c", command], capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert result.returncode != 0
     output = " ".join((result.stdout + result.stderr).split())
     assert "address-space limit (ulimit -v 8000000)" in output, output[-2000:]

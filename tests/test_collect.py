@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
-from conftest import child_env, fill_up
+from conftest import HANG_GUARD_S, child_env, fill_up
 from vintix.atomic import FolderInUseError, folder_lock
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.collect.bench import benchmark_collection
@@ -262,7 +262,7 @@ def wait_for_partial_files(task_dir: Path, count: int) -> None:
 def assert_rerun_gives_the_uninterrupted_bytes(args: list[str], interrupted: Path, straight: Path,
                                                histories: int) -> None:
     for out in (interrupted, straight):
-        output, _ = (process := start_collection(args, out)).communicate(timeout=300)
+        output, _ = (process := start_collection(args, out)).communicate(timeout=HANG_GUARD_S)
         assert process.returncode == 0, output
     for name in ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(histories)]:
         assert filecmp.cmp(straight / "metaworld/reach-v3" / name, interrupted / "metaworld/reach-v3" / name,
@@ -308,7 +308,7 @@ def test_a_disk_that_fills_up_mid_collection_ends_it_with_the_fix_and_no_unfinis
     process = start_collection(args, out)
     wait_for_partial_files(out / "metaworld" / "reach-v3", 1)
     ballast = fill_up(small_disk)
-    output, _ = process.communicate(timeout=120)
+    output, _ = process.communicate(timeout=HANG_GUARD_S)
     assert process.returncode == 2, output
     assert "No space left on device" in output and "the disk is full" in output and "Traceback" not in output, output
     assert not list(out.rglob("*.partial"))

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import vintix
+from conftest import HANG_GUARD_S
 from vintix.demonstrators.base import external_demonstrator
 from vintix.errors import VintixError
 from vintix.tasks import get_task, make_env, registry, resolve_tasks
@@ -80,7 +81,7 @@ def vintix_cli(*args, cwd, tasks_file=None):
     if tasks_file:
         env["VINTIX_TASKS"] = str(tasks_file)
     result = subprocess.run([sys.executable, "-m", "vintix", *args], cwd=cwd, env=env, capture_output=True, text=True,
-                            timeout=300)
+                            timeout=HANG_GUARD_S)
     assert result.returncode == 0, result.stdout + result.stderr
     return result.stdout
 

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from conftest import HANG_GUARD_S
+
 PAGE = Path(__file__).parents[1] / "docs" / "icrl-your-env.md"
 
 
@@ -43,7 +45,7 @@ def follow_page(page: Path, folder: Path) -> set[str]:
     env = {**os.environ, "PYTHONPATH": str(folder),
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}  # this environment's vintix
     run = subprocess.run(["bash", "-euo", "pipefail", "-c", shell], cwd=folder, env=env, capture_output=True,
-                         text=True, timeout=900)
+                         text=True, timeout=HANG_GUARD_S)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     return set(files)
 

@@ -8,6 +8,7 @@ import sys
 
 import yaml
 
+from conftest import HANG_GUARD_S
 from test_train import TEST_MODEL, metaworld_data  # noqa: F401  (the module-scoped data fixture)
 from vintix.model import load_pretrained
 from vintix.train.checkpoint import latest_checkpoint, read_training_state
@@ -23,7 +24,7 @@ def test_torchrun_two_processes_on_cpu_keep_replicas_identical(metaworld_data, t
     out = tmp_path / "run"
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc-per-node", "2",
                "-m", "vintix", "train", "--config", str(config), "--data", str(metaworld_data), "--out", str(out)]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=300,
+    result = subprocess.run(command, capture_output=True, text=True, timeout=HANG_GUARD_S,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert "2 process(es) on cpu" in result.stdout
