@@ -102,11 +102,12 @@ def official_dtype(dataset: str, discrete: bool = False) -> np.dtype:
     return DTYPES.get(dataset, DTYPES["action"])
 
 
-def dims_text(obs_dim: int, act_dim: int, discrete: bool) -> str:
+def dims_text(obs_dim: int, act_dim: int, discrete: bool, named: bool = True) -> str:
     """``(obs_dim, act_dim) = (3, 2)``, or for a discrete task ``(obs_dim, actions) = (2, 5) with action_type
-    'discrete'``: how errors name a task's or a file's dims."""
-    return f"(obs_dim, actions) = ({obs_dim}, {act_dim}) with action_type 'discrete'" if discrete else \
-        f"(obs_dim, act_dim) = ({obs_dim}, {act_dim})"
+    'discrete'``: how errors name a task's or a file's dims; without the names (`named` False) from ``(3, 2)`` on."""
+    names = "(obs_dim, actions) = " if discrete else "(obs_dim, act_dim) = "
+    kind = " with action_type 'discrete'" if discrete else ""
+    return f"{names if named else ''}({obs_dim}, {act_dim}){kind}"
 
 
 def is_action_dataset(dataset: str) -> bool:

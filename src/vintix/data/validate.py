@@ -92,7 +92,7 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None,
             problems.append(Problem(
                 metadata_path(task_dir),
                 f"task {meta['task_name']!r} declares {dims_text(*dims, discrete)} but the task registry expects "
-                f"{dims_text(*registry).partition(' = ')[2]}; check the environment version (MuJoCo -v4 and -v5 dims "
+                f"{dims_text(*registry, named=False)}; check the environment version (MuJoCo -v4 and -v5 dims "
                 "differ) or fix the json",
             ))
     except DatasetError as err:
@@ -146,9 +146,9 @@ def _check_contents(file: h5py.File, layout: Layout, episode_limit: int | None =
     recollect = "re-collect the history"
     rewrite = "rewrite it with LearningHistoryWriter, which casts to the official dtypes"
     action_names = ["action"] + [n for n in [layout.demonstrator_action] if n]
-    real_valued = ["proprio_observation", "action", "reward"] + action_names[1:]
-    if layout.discrete:  # integers are finite; their range is what can be wrong
-        real_valued = ["proprio_observation", "reward"]
+    # A discrete history's actions are integers, always finite: their range is what can be wrong.
+    real_valued = (["proprio_observation", "reward"] if layout.discrete
+                   else ["proprio_observation", "action", "reward", *action_names[1:]])
     previous_stop, last_step = 0, -1
     starts: list[np.ndarray] = []  # per group, where step_num is 0 (an episode starts)
     recorded: list[tuple[np.ndarray, np.ndarray] | None] = []  # per group, (absolute end rows, kinds) if stored

@@ -355,7 +355,7 @@ def _registry_spec(task: TaskData) -> TaskSpec:
         raise TrainingDataError(
             f"{task.task_dir}: task {task.task_name!r} declares {dims_text(task.obs_dim, task.act_dim, task.discrete)} "
             f"but the task registry's {spec.name} (group {spec.group!r}) has "
-            f"{dims_text(spec.obs_dim, spec.act_dim, spec.discrete).partition(' = ')[2]}; the "
+            f"{dims_text(spec.obs_dim, spec.act_dim, spec.discrete, named=False)}; the "
             "folder holds another env version's or another task's data (MuJoCo -v4 and -v5 dims differ). Fix its "
             "JSON and histories or leave the folder out; `vintix data validate` flags it too"
         )
