@@ -7,8 +7,10 @@ import dataclasses
 import errno
 import json
 import math
+import os
 import re
 import shutil
+import signal
 from pathlib import Path
 
 import h5py
@@ -24,6 +26,7 @@ from vintix.atomic import folder_lock
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.errors import DatasetError
+from vintix.interrupt import Interrupted
 from vintix.model import CheckpointError, load_pretrained
 from vintix.model.checkpoint import read_metadata
 from vintix.train import (
@@ -47,7 +50,7 @@ from vintix.train.checkpoint import (
     prune_checkpoints,
     read_training_state,
 )
-from vintix.train.trainer import Selection
+from vintix.train.trainer import Selection, training_threads
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -345,10 +348,43 @@ def test_off_a_terminal_training_says_how_long_it_will_take_and_reports_each_sel
     Trainer(config, scorer=lambda model, tasks: Selection(0.25, reward_use_gap=0.125)).run()
     lines = capsys.readouterr().out.splitlines()
     estimate = next(line for line in lines if "steps/s on this machine" in line)
-    assert "steps 2 to 6 take about" in estimate
+    assert "steps 2 to 6 take about" in estimate and estimate.endswith("plus the in-context selections")
     reports = [line for line in lines if line.startswith("step 4/6") or line.startswith("step 6/6")]
-    assert len(reports) == 2 and all("loss" in r and "left" in r and "success" not in r for r in reports)
-    assert reports[0].endswith("in context: score 0.250, reward-use gap +0.125")
+    assert len(reports) == 2 and all("loss" in r and "success" not in r for r in reports)
+    assert re.search(r"loss \d\.\d{3}e[+-]\d\d, ", reports[0]), "scientific notation: a small loss is not 0.0000"
+    assert reports[0].endswith("left; in context: score 0.250, reward-use gap +0.125")
+    assert "left" not in reports[1], "nothing is left at 100 %"
+
+
+@pytest.mark.parametrize("signal_number", [signal.SIGTERM, signal.SIGINT])
+def test_a_stop_signal_saves_the_step_it_ends_and_says_how_to_resume(metaworld_data, tmp_path, signal_number):
+    """SIGTERM (a scheduler, `kill`) or Ctrl-C during training: the run stops after its current step, saved, and the
+    same command resumes it; a run signalled nowhere near a checkpoint step loses nothing."""
+    config = make_config(metaworld_data, tmp_path / "run", max_steps=8, checkpoint_every=5)
+    handlers = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
+    with pytest.raises(Interrupted, match=rf"stopped by {signal_number.name} at step 3 and saved it in .*step-00000003;"
+                                          " re-run the same command to resume"):
+        Trainer(config, callbacks=[(3, lambda model, step: os.kill(os.getpid(), signal_number))]).run()
+    assert read_training_state(latest_checkpoint(tmp_path / "run"))["step"] == 3
+    assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)] == handlers  # restored after the run
+    resumed = Trainer(config)
+    assert resumed.step == 3 and read_training_state(resumed.run())["step"] == 8
+
+
+def test_training_threads_are_the_ones_asked_for_or_the_idle_cores(monkeypatch):
+    assert training_threads(3, world_size=1) == 3
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    monkeypatch.setattr(os, "getloadavg", lambda: (1.2, 0.0, 0.0))
+    assert training_threads(0, world_size=1) == 3  # one core busy elsewhere: the other three
+    assert training_threads(0, world_size=2) == 1  # shared between two ranks
+    monkeypatch.setattr(os, "getloadavg", lambda: (9.0, 0.0, 0.0))
+    assert training_threads(0, world_size=1) == 1  # an overloaded machine: never 0 or fewer
+
+
+def test_a_run_without_selections_promises_none(metaworld_data, tmp_path, capsys):
+    Trainer(make_config(metaworld_data, tmp_path / "run", max_steps=4, log_every=2)).run()
+    estimate = next(line for line in capsys.readouterr().out.splitlines() if "steps/s on this machine" in line)
+    assert "selection" not in estimate
 
 
 def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path):
@@ -358,9 +394,10 @@ def test_vintix_train_selects_by_real_cold_start_shots(metaworld_data, tmp_path)
         "train", "--data", str(metaworld_data), "--out", str(out), "--set", f"model_overrides={TEST_MODEL}",
         "--set", "max_steps=2", "--set", "batch_size=2", "--set", "warmup_steps=1", "--set", "log_every=2",
         "--set", "select_every=2", "--set", "select_shots=2", "--set", "select_seeds=1",
-        "--set", "select_tasks=[reach-v3]", "--set", "tensorboard=false", "--set", f"stats_cache_dir={tmp_path / 'c'}"])
+        "--set", "select_tasks=[reach-v3]", "--set", "tensorboard=false", "--set", f"stats_cache_dir={tmp_path / 'c'}",
+        "--threads", "1"])
     assert result.exit_code == 0, result.output
-    assert "best in-context score" in result.output
+    assert "best in-context score" in result.output and "(1 CPU thread(s) each)" in result.output
     score = logged(out, "in_context_score")[0]
     assert score == pytest.approx(read_metadata(best_checkpoint_dir(out))["extra"]["in_context_score"], abs=1e-6)
     assert -2.0 < score < 2.0

@@ -41,9 +41,10 @@ class _Commands(TyperGroup):
             return super().invoke(ctx)
         except (VintixError, OSError) as error:
             raise _fail(error) from None
-        except KeyboardInterrupt:  # Ctrl-C, or `kill` during a command that takes it as one
-            console.print("interrupted: files finished before are kept, and collect and train resume from them "
-                          "when re-run")
+        except KeyboardInterrupt as interrupt:  # Ctrl-C, or `kill` during a command that takes it as one
+            # An `Interrupted` says what its command saved; a bare KeyboardInterrupt, what every command keeps.
+            console.print(str(interrupt) or "interrupted: files finished before are kept, and collect and train "
+                          "resume from them when re-run")
             raise typer.Exit(code=130) from None
 
 
@@ -349,7 +350,7 @@ def demonstrator_train(
     from stable_baselines3.common.callbacks import BaseCallback
 
     from vintix.demonstrators.trained import shipped_weights_dir
-    from vintix.demonstrators.training import TrainingInterrupted, recipe_for, train_demonstrator
+    from vintix.demonstrators.training import recipe_for, train_demonstrator
 
     class SayWhereItStarts(BaseCallback):
         def _on_training_start(self) -> None:
@@ -370,9 +371,6 @@ def demonstrator_train(
         path = train_demonstrator(task, timesteps, seed, target, callback=SayWhereItStarts(), report=console.print)
     except VintixError as error:
         raise _fail(error) from None
-    except TrainingInterrupted as interrupted:
-        console.print(str(interrupted))
-        raise typer.Exit(130) from None
     meta = json.loads(path.with_suffix(".json").read_text())
     if stopped := meta.get("stopped_at_score"):
         console.print(f"stopped at step {stopped['step']:,} of {stopped['budget']:,}: normalized score "
@@ -769,6 +767,9 @@ def train_command(
     settings: Annotated[list[str] | None, typer.Option(
         "--set", metavar="FIELD=VALUE",
         help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
+    threads: Annotated[int | None, typer.Option(
+        min=0, help="torch CPU threads per training process (0: the cores the load average leaves idle; default: "
+        "the config's threads, which is 0 unless it says otherwise)")] = None,
 ) -> None:
     """Train (or resume) a model by Algorithm Distillation.
 
@@ -777,7 +778,8 @@ def train_command(
     from vintix.train import load_config, train
 
     try:
-        train_config = load_config(config, {"data": data and str(data), "out": out and str(out)}, settings)
+        train_config = load_config(config, {"data": data and str(data), "out": out and str(out),
+                                            "threads": threads}, settings)
         train(train_config, scorer=in_context_scorer(train_config))
     except VintixError as error:
         raise _fail(error) from None

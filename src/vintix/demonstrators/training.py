@@ -61,7 +61,7 @@ from vintix.demonstrators.trained import (
     save_trained_policy,
 )
 from vintix.errors import VintixError
-from vintix.interrupt import sigterm_as_ctrl_c
+from vintix.interrupt import Interrupted, sigterm_as_ctrl_c
 from vintix.tasks import get_task, list_tasks, make_env
 from vintix.tasks.scores import reference
 from vintix.userdirs import user_cache_dir
@@ -216,10 +216,6 @@ def _saved_plan(info: dict[str, Any]) -> dict[str, Any]:
     saved = {name: value for name, value in _training_fields(plan["recipe"]).items()
              if name not in _REMOVED_FIELDS or value != _REMOVED_FIELDS[name]}
     return {**plan, "recipe": {**json.loads(json.dumps(defaults)), **saved}}
-
-
-class TrainingInterrupted(KeyboardInterrupt):
-    """Ctrl-C during `train_demonstrator`, after the run was saved; the message says where."""
 
 
 STATE_FILE = "state.json"  # written last: a state folder without it is incomplete
@@ -558,7 +554,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
                         reset_num_timesteps=found is None, progress_bar=progress_bar)
     except KeyboardInterrupt:
         save_state()
-        raise TrainingInterrupted(
+        raise Interrupted(
             f"interrupted at step {model.num_timesteps:,}; the run is saved under {state_dir}: "
             "re-run the same command to resume"
         ) from None

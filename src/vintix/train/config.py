@@ -85,6 +85,9 @@ class TrainConfig:
     """tail fraction for expert_distillation (default: each task JSON's noise_free_fraction)"""
     seed: int = 0
     """seed of the model initialization and of the window sampler"""
+    threads: int = 0
+    """torch CPU threads of each training process (0: auto, the cores the load average leaves idle, at least one:
+    on a 2-core machine with one core busy, 2 threads ran 2.2x slower than 1); `vintix train --threads`"""
     num_workers: int = 0
     """DataLoader worker processes per training process (0: load in the training process)"""
     device: str = "auto"
@@ -138,6 +141,7 @@ class TrainConfig:
             raise ConfigError(f"these fields must be >= 1: {', '.join(bad)}")
         non_negative = {"warmup_steps": self.warmup_steps, "weight_decay": self.weight_decay,
                         "grad_clip": self.grad_clip, "num_workers": self.num_workers, "seed": self.seed,
+                        "threads": self.threads,
                         "select_first_seed": self.select_first_seed}
         bad = [f"{k}={v}" for k, v in non_negative.items() if v < 0]
         if bad:
@@ -200,7 +204,7 @@ _SET_HINT = ("(--set values are read as YAML: --set max_steps=500, --set 'tasks=
 
 
 FREE_ON_RESUME = frozenset({
-    "data", "out", "max_steps", "device", "num_workers", "checkpoint_every", "keep_checkpoints", "log_every",
+    "data", "out", "max_steps", "device", "threads", "num_workers", "checkpoint_every", "keep_checkpoints", "log_every",
     "tensorboard", "select_every", "select_shots", "select_seeds", "select_first_seed", "select_reward_gap",
     "stats_cache_dir", "allow_resume_changes", "model", "model_overrides",
 })

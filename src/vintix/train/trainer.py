@@ -28,6 +28,7 @@ from tqdm import tqdm
 
 from vintix.atomic import atomic_write_text, check_output_kind, folder_lock
 from vintix.errors import DeviceError, VintixError
+from vintix.interrupt import Interrupted, StopRequest, stop_requests
 from vintix.memory import build_within_memory
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix, count_parameters, estimated_parameters
@@ -209,6 +210,17 @@ def resolve_device(name: str, local_rank: int) -> torch.device:
     return torch.device("cuda", local_rank) if use_cuda else torch.device("cpu")
 
 
+def training_threads(requested: int, world_size: int) -> int:
+    """torch CPU threads for one of `world_size` training processes: `requested`, or (0) the cores the 1-minute load
+    average leaves idle, shared among the processes, at least one. A second thread on a core another job keeps busy
+    slows the many small ops of a small model down instead of speeding them up."""
+    if requested:
+        return requested
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    idle = cores - round(os.getloadavg()[0]) if hasattr(os, "getloadavg") else cores
+    return max(1, min(cores, idle) // world_size)
+
+
 def init_distributed(device_name: str) -> tuple[Distributed, torch.device]:
     """Join the ``torchrun`` process group if there is one (its env vars say so)."""
     world_size = int(os.environ.get("WORLD_SIZE", "1"))
@@ -241,8 +253,9 @@ class ProgressReport:
 
     EVERY_S = 60.0
 
-    def __init__(self, step: int, stop: int, metric: str, on_terminal: bool) -> None:
+    def __init__(self, step: int, stop: int, metric: str, on_terminal: bool, selects: bool) -> None:
         self.first_step, self.stop, self.metric, self.on_terminal = step, stop, metric, on_terminal
+        self.selects = selects
         self.started = self.last_line = time.perf_counter()
         self.estimated = False
 
@@ -252,8 +265,8 @@ class ProgressReport:
         left = _duration((self.stop - step) / per_s) if per_s > 0 else "unknown"
         if not self.estimated:
             self.estimated = True
-            print(f"{per_s:.2f} steps/s on this machine: steps {step:,} to {self.stop:,} take about {left} more, "
-                  "plus the in-context selections", flush=True)
+            print(f"{per_s:.2f} steps/s on this machine: steps {step:,} to {self.stop:,} take about {left} more"
+                  + (", plus the in-context selections" if self.selects else ""), flush=True)
             return
         selected = math.isfinite(selection.score)
         if self.on_terminal or not (selected or now - self.last_line >= self.EVERY_S or step == self.stop):
@@ -262,8 +275,10 @@ class ProgressReport:
         scored = f"; in context: {self.metric} {selection.score:.3f}" if selected else ""
         if selected and math.isfinite(selection.reward_use_gap):
             scored += f", reward-use gap {selection.reward_use_gap:+.3f}"
-        print(f"step {step:,}/{self.stop:,} ({step / self.stop:.0%}): loss {loss:.4f}, {per_s:.2f} steps/s, "
-              f"{left} left{scored}", flush=True)
+        # The loss in scientific notation: a model of small action ranges trains to losses that .4f shows as 0.0000.
+        remaining = f", {left} left" if step < self.stop else ""
+        print(f"step {step:,}/{self.stop:,} ({step / self.stop:.0%}): loss {loss:.3e}, {per_s:.2f} steps/s"
+              f"{remaining}{scored}", flush=True)
 
 
 class MetricsLog:
@@ -331,6 +346,7 @@ class Trainer:
         self.scorer = scorer
         self.out = Path(config.out)
         self.dist, self.device = init_distributed(config.device)
+        torch.set_num_threads(training_threads(config.threads, self.dist.world_size))
         self.data = self._load_data()
         self.window_len = config.window
         torch.manual_seed(config.seed)
@@ -490,7 +506,8 @@ class Trainer:
             n_params = count_parameters(self.model)
             where = f"resuming from {self.resumed_from}" if self.resumed_from else "starting fresh"
             print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
-                  f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device}; "
+                  f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device} "
+                  f"({torch.get_num_threads()} CPU thread(s) each{'' if cfg.threads else ': --threads to choose'}); "
                   f"{where} at step {self.step}")
             if cfg.expert_distillation:  # the ED ablation, or (on every row) the recorded-target objective
                 print("demonstrator-action targets: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
@@ -500,9 +517,14 @@ class Trainer:
         progress = tqdm(total=cfg.max_steps, initial=self.step, desc="train",
                         disable=None if self.dist.is_main else True, dynamic_ncols=True)
         last_time, last_tokens, last_dir = time.perf_counter(), self.tokens, None
-        report = ProgressReport(self.step, stop, cfg.select_metric, on_terminal=not progress.disable)
-        # However the loop ends (an error, a full disk, Ctrl-C), the log and TensorBoard files are closed.
+        report = ProgressReport(self.step, stop, cfg.select_metric, on_terminal=not progress.disable,
+                                selects=bool(cfg.select_every))
+        # However the loop ends (an error, a full disk, Ctrl-C), the log and TensorBoard files are closed. Ctrl-C or
+        # SIGTERM stops a single-process run after its current step, saved (under torchrun, torchrun ends the ranks).
+        stopping = stop_requests() if self.dist.world_size == 1 else contextlib.nullcontext(StopRequest())
+        signals = contextlib.ExitStack()
         try:
+            stop_request = signals.enter_context(stopping)
             while self.step < stop:
                 lr = learning_rate(self.step, cfg)
                 for param_group in self.optimizer.param_groups:
@@ -556,16 +578,20 @@ class Trainer:
                     if log is not None:
                         log.write(row)
                         shown_best = {"best": f"{self.best_score:.3f}"} if self.best_score is not None else {}
-                        progress.set_postfix(loss=f"{row['loss']:.4f}", tok_s=f"{row['tokens_per_s']:,.0f}",
+                        progress.set_postfix(loss=f"{row['loss']:.3e}", tok_s=f"{row['tokens_per_s']:,.0f}",
                                              mfu=f"{row['mfu']:.0%}", **shown_best)
                         report.log_step(self.step, row["loss"], selection)
                     sums.zero_()
                     last_time, last_tokens = time.perf_counter(), self.tokens
                 self._run_callbacks()
-                if self.step % cfg.checkpoint_every == 0 or self.step == stop:
+                if self.step % cfg.checkpoint_every == 0 or self.step == stop or stop_request:
                     last_dir = self.save()
                     last_time = time.perf_counter()  # checkpoint time is not training time
+                if stop_request:
+                    raise Interrupted(f"stopped by {stop_request.signal} at step {self.step:,} and saved it in "
+                                      f"{last_dir}; re-run the same command to resume from there")
         finally:
+            signals.close()
             progress.close()
             del batches  # shuts DataLoader workers down
             if log is not None:
