@@ -21,9 +21,10 @@ install: $(INSTALLED)
 # from the true returns. Where the goal is hidden (Meta-World reach and pick-place, MuJoCo's Reacher-hidden) it
 # probes in shot 1, then succeeds where its rewards pointed, and fails with zeros; where the goal is visible
 # (Meta-World button-press, MuJoCo Pusher, Industrial Benchmark) it plays like its demonstrators either way.
-# Per-shot tables of score and success rate, then a report with the reward-use gap per task, under demo/. No
-# training. Each eval runs on one thread, so the zero-reward eval runs beside the true-reward one on the second
-# core (its table is printed after), and the numbers are the same as run one after the other.
+# Per-shot tables of score and success rate, then a report with the reward-use gap per task, under demo/; the last
+# lines give each run's gap (true − zero) per domain with its CI and shots. No training. Each eval runs on one
+# thread, so the zero-reward eval runs beside the true-reward one on the second core (its table is printed after),
+# and the numbers are the same as run one after the other.
 DEMO := demo
 # name:model:tasks:seeds
 DEMO_RUNS := hidden-goals:vintix-cpu:reach-v3,pick-place-v3,Reacher-hidden-v5:10 \
@@ -39,8 +40,10 @@ demo: $(INSTALLED)
 	    --label "$$2, $$1" --out $(DEMO)/$$1/true || { wait $$zero; exit 1; }; \
 	  wait $$zero; status=$$?; cat $(DEMO)/logs/$$1-zero.log; [ $$status -eq 0 ] || exit 1; \
 	  $(BIN)/vintix report $(DEMO)/$$1/true $(DEMO)/$$1/zero --reference ours --plateau-shots 3 \
-	    --out $(DEMO)/report/$$1 || exit 1; \
-	done
+	    --out $(DEMO)/report/$$1 > $(DEMO)/logs/$$1-report.log 2>&1 || { cat $(DEMO)/logs/$$1-report.log; exit 1; }; \
+	done; \
+	echo "What the rewards do (true − zero fed back, 95 % CI; reports under $(DEMO)/report):"; \
+	for run in $(DEMO_RUNS); do grep -h "^reward-use gap: " $(DEMO)/logs/$${run%%:*}-report.log; done
 
 test: $(INSTALLED)
 	$(BIN)/python -m pytest -q

@@ -83,7 +83,9 @@ def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_ga
                                   same_window=True)
     success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True,
                                     same_window=True)
-    cells = (f"| AD | zero | 3, paired by seed | {score[0]:+.2f} [{score[1]:+.2f}, {score[2]:+.2f}] | "
+    start = best_k_plateau(true.scores["reach-v3"].mean(0), 2)[1]  # the shots the gap averages, printed
+    cells = (f"| AD | zero | 3, paired by seed | {start + 1}–{start + 2} | "
+             f"{score[0]:+.2f} [{score[1]:+.2f}, {score[2]:+.2f}] | "
              f"{100 * success[0]:+.0f} pp [{100 * success[1]:+.0f}, {100 * success[2]:+.0f}] |")
     lines = report.split("## Reward-use gap")[1].split("## Between models")[0].splitlines()
     # One task, so its domain's gap is its own; InvertedPendulum was not run with zeros, the other
@@ -92,6 +94,26 @@ def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_ga
 
     alone = CliRunner().invoke(app, ["report", str(two_results / "ad-zero"), "--out", str(tmp_path / "alone")])
     assert alone.exit_code == 0 and "no folder of its checkpoint 'runs/ad'" in " ".join(alone.output.split())
+
+
+def test_gap_shots_fix_the_window_of_the_reward_use_gap(two_results, tmp_path):
+    """`--gap-shots 2-4`: both runs' mean over shots 2-4, whatever window is best; a window the runs lack is refused."""
+    folders = [str(two_results / "ad"), str(two_results / "ad-zero")]
+    result = CliRunner().invoke(app, ["report", *folders, "--out", str(tmp_path / "report"), "--gap-shots", "2-4"])
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "report" / "report.md").read_text()
+    true, _ = load_results(two_results / "ad", "ours")
+    zero, _ = load_results(two_results / "ad-zero", "ours")
+    gap = true.scores["reach-v3"][:, 1:4].mean() - zero.scores["reach-v3"][:, 1:4].mean()
+    line = next(line for line in report.splitlines() if line.startswith("| reach-v3 | AD | zero |"))
+    assert f"| 2–4 | {gap:+.2f} [" in line and "fixed window `--gap-shots 2-4`" in report
+    said = [line for line in result.output.splitlines() if line.startswith("reward-use gap: ")]
+    assert len(said) == 1 and f"true − zero rewards = {gap:+.2f} [" in said[0] and said[0].endswith("(shots 2–4)")
+    for bad, says in (("3-9", "must lie within the shots the runs have, 1-4"), ("4-2", "first <= last"),
+                      ("2..4", "give FIRST-LAST")):
+        refused = CliRunner().invoke(app, ["report", *folders, "--out", str(tmp_path / bad), "--gap-shots", bad])
+        assert refused.exit_code == 2 and says in " ".join(refused.output.split()), refused.output
+        assert not (tmp_path / bad / "report.md").exists()
 
 
 def test_two_checkpoints_fed_true_rewards_add_the_first_models_gap_over_the_other(two_results, tmp_path):
@@ -112,7 +134,7 @@ def test_two_checkpoints_fed_true_rewards_add_the_first_models_gap_over_the_othe
                    if task in ad.success else None)
         success_cell = "—" if success is None else \
             f"{signed(100 * success[0], 0)} pp [{signed(100 * success[1], 0)}, {signed(100 * success[2], 0)}]"
-        assert (f"| {task} | AD | AD without reward | 3, paired by seed | "
+        assert (f"| {task} | AD | AD without reward | 3, paired by seed | best 2 of each | "
                 f"{signed(score[0], 2)} [{signed(score[1], 2)}, {signed(score[2], 2)}] | {success_cell} |") in lines
     # one row per domain and per task: AD against AD without reward only, never against its own zero run
     assert len([line for line in lines if line.startswith("| ") and "| AD |" in line]) == 4

@@ -1084,6 +1084,16 @@ def _rate(rate: float | None) -> str:
     return "—" if rate is None else f"{rate:.0%}"
 
 
+def _shot_window(text: str | None) -> tuple[int, int] | None:
+    """``"2-40"`` -> (2, 40); None stays None; anything else, an error naming the option."""
+    if text is None:
+        return None
+    first, dash, last = text.partition("-")
+    if not (dash and first.strip().isdigit() and last.strip().isdigit()):
+        raise VintixError(f"--gap-shots {text!r}: give FIRST-LAST, two shot numbers, e.g. --gap-shots 2-40")
+    return int(first), int(last)
+
+
 @app.command("report")
 def report_command(
     results: Annotated[list[Path], typer.Argument(
@@ -1097,16 +1107,22 @@ def report_command(
     model_card: Annotated[bool, typer.Option(
         help="put the released model's model-card scores beside each task and domain (results of a model "
              "imported with vintix import-official; the card uses its own reference returns)")] = False,
+    gap_shots: Annotated[str | None, typer.Option(
+        metavar="FIRST-LAST", help="the reward-use gap over these shots (e.g. 2-40: both runs' mean over them) "
+        "instead of over the true-reward run's best plateau-shots; the report prints the shots either way")] = None,
 ) -> None:
     """Markdown report with PNG figures: score vs shot per task and domain, converged vs the paper's."""
     from vintix.report import write_report
 
     try:
-        path, notes = write_report(results, out, reference, plateau_shots, model_card)
+        path, notes, gaps = write_report(results, out, reference, plateau_shots, model_card,
+                                         _shot_window(gap_shots))
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     for note in notes:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+    for gap in gaps:
+        console.print(f"reward-use gap: {gap}", highlight=False, soft_wrap=True)
     figures = sorted((out / "figures").rglob("*.png"))
     console.print(f"wrote {path} and {len(figures)} figures under {out / 'figures'}")
 

@@ -72,8 +72,8 @@ def best_k_plateau(curve: np.ndarray, k: int) -> tuple[float, int]:
 
 
 def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int, paired: bool,
-                          confidence: float = 0.95, resamples: int = 2000, seed: int = 0, same_window: bool = False
-                          ) -> tuple[float, float, float]:
+                          confidence: float = 0.95, resamples: int = 2000, seed: int = 0, same_window: bool = False,
+                          shots: tuple[int, int] | None = None) -> tuple[float, float, float]:
     """The mean over tasks of converged(a) − converged(b), for one ``(a, b)`` pair of ``[runs, shots]``
     arrays per task (converged: the best `k`-shot plateau of the mean curve over runs), and its
     percentile-bootstrap confidence interval. With `same_window`, b's converged is its mean over the
@@ -84,10 +84,16 @@ def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int
     `a` and of `b` are the same seed and are resampled together, which keeps the seeds' own spread
     (e.g. Meta-World's hidden goals) out of the interval. Curves are cut to the shots both arrays of a
     pair have. With fewer than 2 runs in some sample there is nothing to resample: the interval is
-    the point itself.
+    the point itself. `shots` ``(first, last)``, 1-based and inclusive: a fixed window instead, each array's mean
+    over those shots (a gap that means the same whatever the curves look like).
     """
-    shots = [min(a.shape[1], b.shape[1]) for a, b in pairs]
-    pairs = [(a[:, :n], b[:, :n]) for (a, b), n in zip(pairs, shots, strict=True)]
+    common = [min(a.shape[1], b.shape[1]) for a, b in pairs]
+    if shots is not None:
+        check_shot_window(shots, min(common))
+        pairs = [(a[:, shots[0] - 1 : shots[1]], b[:, shots[0] - 1 : shots[1]]) for a, b in pairs]
+        k, same_window = shots[1] - shots[0] + 1, False  # one window of all its shots: the same for both
+    else:
+        pairs = [(a[:, :n], b[:, :n]) for (a, b), n in zip(pairs, common, strict=True)]
     if paired and any(len(a) != len(b) for a, b in pairs):
         raise ValueError("paired runs need as many runs in a as in b, row i of both being one seed")
     # What is resampled is run indices: one sample per pair when paired, else one per array.
@@ -108,6 +114,14 @@ def converged_gap_with_ci(pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int
     result = bootstrap(samples, gap, confidence_level=confidence, n_resamples=resamples, method="percentile",
                        vectorized=True, axis=-1, random_state=np.random.default_rng(seed))
     return point, float(result.confidence_interval.low), float(result.confidence_interval.high)
+
+
+def check_shot_window(shots: tuple[int, int], available: int) -> None:
+    """A ValueError unless ``shots = (first, last)`` is a window of shots 1..`available`."""
+    first, last = shots
+    if not 1 <= first <= last <= available:
+        raise ValueError(f"the shot window {first}-{last} must lie within the shots the runs have, 1-{available}, "
+                         "first <= last")
 
 
 def _converged_difference(a: np.ndarray, b: np.ndarray, k: int, same_window: bool) -> np.ndarray:

@@ -23,7 +23,7 @@ from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -37,6 +37,7 @@ from vintix.evaluate.config import PLATEAU_SHOTS
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import (
     best_k_plateau,
+    check_shot_window,
     converged_gap_with_ci,
     estimate_with_ci,
     iqm_with_ci,
@@ -296,23 +297,39 @@ def reward_ablations(results: list[Results]) -> tuple[list[tuple[Results, Result
     return pairs, notes
 
 
-def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same_window: bool) -> list[str]:
-    """Runs, and the mean over `variants` of converged(first) − converged(other) with its CI, for the
-    normalized score and (where every variant has one) the success rate; `first` is the true-reward
+def _window_shots(first: Results, variants: list[str], k: int, same_window: bool,
+                  shots: tuple[int, int] | None) -> str:
+    """The shots a gap averages, as its table prints them: the fixed window, the true run's best `k` shots (one
+    window, or "best k per task" where the tasks' differ), or each model's own best `k`."""
+    if shots is not None:
+        return f"{shots[0]}–{shots[1]}"
+    if not same_window:
+        return f"best {k} of each"
+    starts = {best_k_plateau(first.scores[v].mean(axis=0), k)[1] for v in variants}
+    if len(starts) > 1:
+        return f"best {k} per task"
+    start, length = starts.pop(), min(k, min(first.scores[v].shape[1] for v in variants))
+    return f"{start + 1}–{start + length}"
+
+
+def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same_window: bool,
+               shots: tuple[int, int] | None = None) -> list[str]:
+    """Runs, the shots averaged, and the mean over `variants` of converged(first) − converged(other) with its CI,
+    for the normalized score and (where every variant has one) the success rate; `first` is the true-reward
     folder of a reward ablation (`same_window`: the ablated run over the true run's best window), or the
-    first model of a comparison."""
+    first model of a comparison; `shots`: a fixed window of shots instead of the best."""
     paired = all(first.seeds[v] == other.seeds[v] for v in variants)
     if paired:
         runs = f"{sum(len(first.seeds[v]) for v in variants)}, paired by seed"
     else:
         runs = f"{sum(len(first.seeds[v]) for v in variants)} vs {sum(len(other.seeds[v]) for v in variants)}"
     score = converged_gap_with_ci([(first.scores[v], other.scores[v]) for v in variants], k, paired,
-                                  same_window=same_window)
+                                  same_window=same_window, shots=shots)
     with_success = all(v in first.success and v in other.success for v in variants)
     success = (_success_gap(*converged_gap_with_ci([(first.success[v], other.success[v]) for v in variants], k, paired,
-                                                   same_window=same_window))
+                                                   same_window=same_window, shots=shots))
                if with_success else "—")
-    return [runs, _score_gap(*score), success]
+    return [runs, _window_shots(first, variants, k, same_window, shots), _score_gap(*score), success]
 
 
 def model_comparisons(results: list[Results]) -> list[tuple[Results, Results]]:
@@ -333,21 +350,27 @@ def model_comparisons(results: list[Results]) -> list[tuple[Results, Results]]:
 
 
 def _gap_tables(pairs: list[tuple[Results, Results]], other_column: str, other_cell: Callable[[Results], str],
-                table: str, k: int, same_window: bool) -> list[str]:
+                table: str, k: int, same_window: bool, shots: tuple[int, int] | None = None,
+                summary: list[str] | None = None) -> list[str]:
     """Per-domain and per-task tables (markdown lines) of converged(first) − converged(other) with CIs
-    for (first, other) folder pairs; `other_cell` names the other folder in its column."""
-    columns = (f"model (true rewards) | {other_column} | runs | Δ converged score ({table}) | Δ converged success |"
-               "\n|---|---|---|---|---|---|")
+    for (first, other) folder pairs; `other_cell` names the other folder in its column. `summary` gets one line
+    per domain row, for a console."""
+    columns = (f"model (true rewards) | {other_column} | runs | shots | Δ converged score ({table}) | "
+               "Δ converged success |\n|---|---|---|---|---|---|---|")
     domain_lines, task_lines = [f"| domain | {columns}"], [f"| task | {columns}"]
     for first, other in pairs:
         common = sorted(set(first.scores) & set(other.scores))
         for domain in sorted({first.domains[v] for v in common}):
             variants = [v for v in common if first.domains[v] == domain]
-            domain_lines.append(f"| {domain} | {first.label} | {other_cell(other)} | "
-                                + " | ".join(_gap_cells(first, other, variants, k, same_window)) + " |")
+            cells = _gap_cells(first, other, variants, k, same_window, shots)
+            domain_lines.append(f"| {domain} | {first.label} | {other_cell(other)} | " + " | ".join(cells) + " |")
+            if summary is not None:
+                _, window, score, success = cells
+                summary.append(f"{first.label}, {domain}: true − {other_cell(other)} rewards = {score} score"
+                               + (f", {success} success" if success != "—" else "") + f" (shots {window})")
         for variant in common:
             task_lines.append(f"| {variant} | {first.label} | {other_cell(other)} | "
-                              + " | ".join(_gap_cells(first, other, [variant], k, same_window)) + " |")
+                              + " | ".join(_gap_cells(first, other, [variant], k, same_window, shots)) + " |")
     return ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
 
 
@@ -356,8 +379,10 @@ def _fed_instead(other: Results) -> str:
     return other.reward_input if other.reward_input in other.label else f"{other.reward_input}: {other.label}"
 
 
-def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int) -> list[str]:
-    """The report's reward-use gap section (markdown lines) for (true, ablated) folder pairs."""
+def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int,
+                       shots: tuple[int, int] | None = None, summary: list[str] | None = None) -> list[str]:
+    """The report's reward-use gap section (markdown lines) for (true, ablated) folder pairs; `shots`: a fixed
+    window of shots (first, last) instead of the true run's best `k`; `summary` gets a line per domain."""
     lines = ["\n## Reward-use gap\n",
              "In-context RL means the rewards do the work: the same model with zeros or shuffled rewards fed back "
              "should do worse; a gap near zero means the improvement over shots is not reward-driven. "
@@ -367,8 +392,11 @@ def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int)
              f"{k}-shot plateau of a task's mean curve (so shots the true run's converged leaves out, a probing "
              "first episode, count for neither); a domain's Δ is the mean of its tasks' Δ. 95 % CIs: percentile "
              "bootstrap resampling runs within each task, a seed's two runs (same env, same Meta-World goal) "
-             "together when both folders ran the same seeds.\n"]
-    return lines + _gap_tables(pairs, "fed back instead", _fed_instead, table, k, same_window=True)
+             "together when both folders ran the same seeds. The *shots* column says which shots each Δ averages"
+             + (f": here the fixed window `--gap-shots {shots[0]}-{shots[1]}`, both runs' mean over it"
+                if shots else "; `--gap-shots FIRST-LAST` fixes them") + ".\n"]
+    return lines + _gap_tables(pairs, "fed back instead", _fed_instead, table, k, same_window=True, shots=shots,
+                               summary=summary)
 
 
 def model_comparison_section(pairs: list[tuple[Results, Results]], table: str, k: int) -> list[str]:
@@ -382,12 +410,22 @@ def model_comparison_section(pairs: list[tuple[Results, Results]], table: str, k
     return lines + _gap_tables(pairs, "compared with", lambda other: other.label, table, k, same_window=False)
 
 
-def write_report(folders: list[Path], out: Path, table: str = "paper",
-                 plateau_shots: int = PLATEAU_SHOTS, model_card: bool = False) -> tuple[Path, list[str]]:
+class WrittenReport(NamedTuple):
+    """What `write_report` wrote, and what a console should show of it."""
+
+    path: Path
+    notes: list[str]
+    """tasks without a reference score, ablated folders without a true-reward folder, too few runs"""
+    gaps: list[str]
+    """one line per reward ablation and domain: its reward-use gap with CI, and the shots it averages"""
+
+
+def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_shots: int = PLATEAU_SHOTS,
+                 model_card: bool = False, gap_shots: tuple[int, int] | None = None) -> WrittenReport:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
     `model_card`: put the released model's model-card scores beside each task and domain (for results of
-    the imported official model). Returns the report's path and notes (tasks without a reference score,
-    ablated folders without a true-reward folder to compare with)."""
+    the imported official model). `gap_shots`: the reward-use gap over these shots (first, last; 1-based,
+    inclusive) instead of the true run's best `plateau_shots`."""
     if plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     check_output_kind(out, "report")
@@ -489,13 +527,20 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
     lines += [f"![{v}](figures/tasks/{_slug(v)}.png)" for v in sorted({v for r in results for v in r.scores})]
     ablations, unmatched = reward_ablations(results)
+    gaps: list[str] = []
     notes += unmatched
     few = sorted({f"{v} ({r.label}: {len(r.scores[v])})" for r in results for v in r.scores
                   if len(r.scores[v]) < FEW_RUNS})
     if few:
         notes.append(f"fewer than {FEW_RUNS} runs, so confidence intervals that say little: {', '.join(few)}")
     if ablations:
-        lines += reward_gap_section(ablations, table, plateau_shots)
+        if gap_shots is not None:  # before any table is drawn: a window the runs do not have is the user's to fix
+            try:
+                check_shot_window(gap_shots, min(r.scores[v].shape[1] for pair in ablations for r in pair
+                                                 for v in r.scores))
+            except ValueError as error:
+                raise VintixError(f"--gap-shots: {error}") from None
+        lines += reward_gap_section(ablations, table, plateau_shots, gap_shots, gaps)
     comparisons = model_comparisons(results)
     if comparisons:
         lines += model_comparison_section(comparisons, table, plateau_shots)
@@ -503,7 +548,7 @@ def write_report(folders: list[Path], out: Path, table: str = "paper",
         lines += ["\n## Notes\n"] + [f"- {n}" for n in notes]
     path = out / "report.md"
     atomic_write_text(path, "\n".join(lines) + "\n")
-    return path, notes
+    return WrittenReport(path, notes, gaps)
 
 
 def _success_cells(r: Results, variants: list[str], k: int) -> list[str]:
