@@ -24,6 +24,7 @@ from vintix.evaluate import (
     Reference,
     ReferenceScoreError,
     evaluate,
+    evaluate_shots,
     in_context_score,
     in_context_scorer,
     parse_variation,
@@ -66,6 +67,26 @@ def test_cold_start_eval_on_real_envs_writes_every_episode(tmp_path):
     assert len({r["return"] for r in reach if r["shot"] == "1"}) == 2
     run = json.loads((tmp_path / "results" / "run.json").read_text())
     assert run["label"] == "ckpt" and "one hidden goal" in run["goal_protocol"]
+
+
+def test_evaluate_shots_returns_what_vintix_eval_writes_per_seed_and_shot(tmp_path):
+    """The Python helper (SB3's evaluate_policy habit) plays the same runs as `vintix eval`: same returns, success
+    and scores, as [seeds, shots] arrays."""
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "reach-v3",
+                                      "--shots", "3", "--seeds", "2", "--first-seed", "7",
+                                      "--out", str(tmp_path / "results")])
+    assert result.exit_code == 0, result.output
+    runs = evaluate_shots(Agent.from_pretrained(tmp_path / "ckpt"), "reach-v3", shots=3, seeds=2, first_seed=7)
+    assert runs.task == "reach-v3" and runs.seeds == [7, 8] and runs.returns.shape == (2, 3)
+    for row in csv.DictReader((tmp_path / "results" / "episodes.csv").open()):
+        i, j = runs.seeds.index(int(row["seed"])), int(row["shot"]) - 1
+        assert runs.returns[i, j] == pytest.approx(float(row["return"]))
+        assert runs.success[i, j] == float(row["success"])
+        assert runs.scores[i, j] == pytest.approx(float(row["normalized_ours"]))
+    assert runs.per_shot("success").shape == (3,)
+    with pytest.raises(UnknownTaskError, match="Hopper"):
+        evaluate_shots(Agent.from_pretrained(tmp_path / "ckpt"), "Hopper-v5", shots=1, seeds=1)
 
 
 @pytest.mark.parametrize(("option", "message"), [

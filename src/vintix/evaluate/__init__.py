@@ -14,7 +14,9 @@ from vintix.tasks.scores import REFERENCE_TABLES, Reference, ReferenceScoreError
 
 if TYPE_CHECKING:
     from vintix.evaluate.run import (
+        ShotResults,
         evaluate,
+        evaluate_shots,
         in_context_score,
         in_context_scorer,
         parse_variation,
@@ -26,8 +28,8 @@ if TYPE_CHECKING:
     from vintix.evaluate.summary import best_k_plateau, converged_gap_with_ci, iqm, iqm_with_ci
 
 _LAZY = {
-    "vintix.evaluate.run": ("evaluate", "in_context_score", "in_context_scorer", "parse_variation", "select_tasks",
-                            "shot_curves", "shots_to_show", "summarize"),
+    "vintix.evaluate.run": ("ShotResults", "evaluate", "evaluate_shots", "in_context_score", "in_context_scorer",
+                            "parse_variation", "select_tasks", "shot_curves", "shots_to_show", "summarize"),
     "vintix.evaluate.summary": ("best_k_plateau", "converged_gap_with_ci", "iqm", "iqm_with_ci"),
 }
 
@@ -47,9 +49,11 @@ __all__ = [
     "EvalConfigError",
     "Reference",
     "ReferenceScoreError",
+    "ShotResults",
     "best_k_plateau",
     "converged_gap_with_ci",
     "evaluate",
+    "evaluate_shots",
     "in_context_score",
     "in_context_scorer",
     "iqm",

@@ -388,6 +388,47 @@ def summarize(rows: Sequence[dict[str, Any]], table: str = "paper",
     return summary
 
 
+@dataclass(frozen=True)
+class ShotResults:
+    """One task's cold-start runs as `vintix eval` measures them: row i is env seed ``seeds[i]``, column j shot j+1."""
+
+    task: str
+    seeds: list[int]
+    returns: np.ndarray
+    """[seeds, shots] episode returns"""
+    success: np.ndarray
+    """[seeds, shots] 0/1 success flags (NaN for a task without one)"""
+    scores: np.ndarray
+    """[seeds, shots] normalized scores against our measured demonstrators (NaN without a reference)"""
+
+    def per_shot(self, what: str = "success") -> np.ndarray:
+        """The mean over seeds of `what` (returns, success or scores) at each shot."""
+        values: np.ndarray = getattr(self, what)
+        return values.mean(axis=0)
+
+
+def evaluate_shots(agent: Agent, task: str, shots: int = 10, seeds: int = 5, first_seed: int = 100,
+                   reward_input: str = "true", greedy: bool = False, **settings: Any) -> ShotResults:
+    """Play `shots` episodes from an empty context on each of `seeds` envs of `task` (seeds `first_seed`, ...) and
+    return every episode's return, success and score: Stable-Baselines3's ``evaluate_policy`` habit, for in-context
+    runs, with the numbers `vintix eval` prints (it is the same run). `settings`: any other `EvalConfig` field."""
+    config = EvalConfig(tasks=[task], shots=shots, seeds=seeds, first_seed=first_seed, reward_input=reward_input,
+                        greedy=greedy, **settings)
+    rows, _ = evaluate(agent, config)
+    if not rows:
+        raise UnknownTaskError(f"{task!r}: the model plays none of it (its groups: {', '.join(agent.model.groups)})")
+    order = sorted({int(r["seed"]) for r in rows})
+
+    def grid(column: str) -> np.ndarray:
+        values = np.full((len(order), shots), np.nan)
+        for r in rows:
+            if r[column] != "":
+                values[order.index(int(r["seed"])), int(r["shot"]) - 1] = float(r[column])
+        return values
+
+    return ShotResults(rows[0]["task"], order, grid("return"), grid("success"), grid("normalized_ours"))
+
+
 def shot_curves(rows: Sequence[dict[str, Any]], column: str = "normalized_paper",
                 statistic: Callable[[np.ndarray], Any] = np.mean) -> dict[str, np.ndarray]:
     """Per domain (with split and variation, e.g. 'industrial_benchmark test'): `statistic` (the mean, or
