@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
 
-.PHONY: demo test install lock clean
+.PHONY: demo test test-fast install lock clean
 
 # The virtual environment is rebuilt whenever the lock file or the package metadata changes.
 $(INSTALLED): requirements.lock pyproject.toml
@@ -47,6 +47,10 @@ demo: $(INSTALLED)
 
 test: $(INSTALLED)
 	$(BIN)/python -m pytest -q
+
+# Everything but the minutes-long end-to-end runs (tests marked slow): for the edit-test loop; CI runs make test.
+test-fast: $(INSTALLED)
+	$(BIN)/python -m pytest -q -m "not slow"
 
 # Re-resolve dependencies from pyproject.toml into requirements.lock (needs the package index).
 lock:

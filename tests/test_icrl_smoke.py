@@ -9,6 +9,7 @@ model: it improved over shots exactly as much with zero rewards) fails this test
 """
 
 import numpy as np
+import pytest
 
 from vintix.agent import Agent
 from vintix.collect import collect, load_recipe
@@ -22,6 +23,7 @@ def mean_over_shots(rows: list[dict], shots: range) -> tuple[float, float]:
     return float(np.mean([r["normalized_ours"] for r in chosen])), float(np.mean([r["success"] for r in chosen]))
 
 
+@pytest.mark.slow
 def test_a_model_trained_on_reward_inferred_histories_needs_its_rewards(tmp_path):
     collect(load_recipe("point-goal"), tmp_path / "data")
     run = train(load_config("point-goal", {"data": str(tmp_path / "data"), "out": str(tmp_path / "run")}))

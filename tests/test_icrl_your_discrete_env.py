@@ -5,12 +5,14 @@ shot 2 on with the true rewards fed back, not with zeros)."""
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from test_icrl_your_env import follow_page, success_by_shot
 
 PAGE = Path(__file__).parents[1] / "docs" / "icrl-your-discrete-env.md"
 
 
+@pytest.mark.slow
 def test_following_the_page_gives_a_discrete_model_that_finds_the_lucky_lever_from_its_rewards(tmp_path):
     assert follow_page(PAGE, tmp_path) == {"levers.py", "tasks.yaml", "recipe.yaml", "train.yaml"}
     true, zero = success_by_shot(tmp_path / "results" / "true"), success_by_shot(tmp_path / "results" / "zero")

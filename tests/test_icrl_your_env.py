@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from conftest import HANG_GUARD_S
 
@@ -50,6 +51,7 @@ def follow_page(page: Path, folder: Path) -> set[str]:
     return set(files)
 
 
+@pytest.mark.slow
 def test_following_the_page_gives_a_model_that_finds_the_hidden_target_from_its_rewards(tmp_path):
     assert follow_page(PAGE, tmp_path) == {"hidden_target.py", "tasks.yaml", "recipe.yaml", "train.yaml"}
     true, zero = success_by_shot(tmp_path / "results" / "true"), success_by_shot(tmp_path / "results" / "zero")

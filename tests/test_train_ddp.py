@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import pytest
 import yaml
 
 from conftest import HANG_GUARD_S
@@ -14,6 +15,7 @@ from vintix.model import load_pretrained
 from vintix.train.checkpoint import latest_checkpoint, read_training_state
 
 
+@pytest.mark.slow
 def test_torchrun_two_processes_on_cpu_keep_replicas_identical(metaworld_data, tmp_path):  # noqa: F811
     config = tmp_path / "ddp.yaml"
     config.write_text(yaml.safe_dump({
