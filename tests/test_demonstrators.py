@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
+from vintix.data import LearningHistory
 from vintix.demonstrators import TrainedDemonstrator, load_demonstrator, training
 from vintix.demonstrators.scores import UniformRandomPolicy, episode_returns, measure
 from vintix.demonstrators.trained import shipped_weights_dir
@@ -431,3 +432,53 @@ def test_training_writes_to_the_users_folder_and_a_recipe_can_collect_with_those
     env = make_env("InvertedPendulum-v5", seed=0)
     obs, _ = env.reset()
     assert demonstrator.act(obs[None], [env]).shape == (1, 1)
+
+
+class CallLog:
+    """A user-written demonstrator that reads its rewards (docs/demonstrators.md's protocol): it writes down every
+    call the collector makes, and plays the Dark Room goal-blind, moving right until a reward, then staying."""
+
+    def __init__(self):
+        self.calls: list[tuple] = []
+
+    def begin(self, envs, rngs):
+        self.calls.append(("begin", len(envs)))
+        self.paid = [False] * len(envs)
+
+    def act(self, observations, envs):
+        self.calls.append(("act", observations.copy()))
+        return np.array([0 if paid else 4 for paid in self.paid])
+
+    def observe(self, env_index, env, action, reward, episode_end):
+        self.calls.append(("observe", env_index, int(action), reward, episode_end, tuple(env.unwrapped.true_goal)))
+        self.paid[env_index] |= reward > 0
+
+    def expert_act(self, observations, envs):
+        actions = np.array([env.unwrapped.expert_action() for env in envs])
+        self.calls.append(("expert_act", actions))
+        return actions
+
+
+def test_a_reward_reading_demonstrator_is_told_each_step_in_the_documented_order(tmp_path):
+    """The protocol of docs/demonstrators.md, driven through collect: begin once per batch; then per step act (on
+    the observations), expert_act (the recorded target), and per env observe(index, env, executed action, reward,
+    episode end) right after its step, before the env resets; resets keep the history's hidden goal."""
+    demonstrator = CallLog()
+    plan = CollectionPlan("DarkRoom-v0", histories=2, steps=40, schedule=NoiseSchedule(noise_free_fraction=1.0),
+                          envs_per_batch=2)
+    collect(plan, tmp_path, demonstrator=demonstrator)
+    kinds = [call[0] for call in demonstrator.calls]
+    assert kinds == ["begin"] + ["act", "expert_act", "observe", "observe"] * 40
+    assert demonstrator.calls[0] == ("begin", 2)
+    observed = [call for call in demonstrator.calls if call[0] == "observe"]
+    assert [call[1] for call in observed] == [0, 1] * 40
+    assert [call[4] for call in observed[::2]] == ([False] * 19 + [True]) * 2  # the 20-step episodes' ends
+    targets = [call[1] for call in demonstrator.calls if call[0] == "expert_act"]
+    for index, path in enumerate(sorted(tmp_path.rglob("history-*.h5"))):
+        history = LearningHistory(path)
+        rows = history.read(0, history.num_steps, demonstrator_action=True)
+        mine = observed[index::2]
+        assert [call[2] for call in mine] == rows["action"].tolist()  # the executed actions, as stored
+        assert [call[3] for call in mine] == rows["reward"].tolist()  # the rewards, as stored
+        assert [t[index] for t in targets] == rows["demonstrator_action"].tolist()  # expert_act: the target
+        assert len({call[5] for call in mine}) == 1  # the env's reset after an episode keeps its hidden goal
