@@ -9,9 +9,12 @@ import sys
 import h5py
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 from conftest import flip_a_byte_of_data
+from vintix.cli import app
 from vintix.data import (
+    LearningHistory,
     LearningHistoryWriter,
     summarize_dataset,
     task_directory,
@@ -222,3 +225,14 @@ def test_summary(dataset):
     assert (hopper.domain, hopper.histories, hopper.steps, hopper.episodes) == ("mujoco", 2, 60, 8)
     assert math.isclose(hopper.mean_episode_length, 7.5)
     assert (summary["reach-v5"].histories, summary["reach-v5"].steps, summary["reach-v5"].episodes) == (1, 30, 4)
+    # Returns by episode index: each history's i-th episode, averaged over the histories.
+    per_history = [LearningHistory(hopper_file(dataset).with_name(f"{seed}.h5")).episode_returns() for seed in (0, 1)]
+    assert np.allclose(hopper.return_by_episode, np.mean(per_history, axis=0)) and len(hopper.return_by_episode) == 4
+
+
+def test_vintix_data_stats_prints_the_return_of_each_episode_index(dataset):
+    result = CliRunner().invoke(app, ["data", "stats", str(dataset)], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    hopper = {s.task_name: s for s in summarize_dataset(dataset)}["hopper-v5"]
+    row = next(line for line in result.output.splitlines() if line.lstrip("│ ").startswith("hopper-v5"))
+    assert [cell.strip() for cell in row.split("│")[2:-1]] == [f"{v:.3g}" for v in hopper.return_by_episode]

@@ -632,9 +632,10 @@ def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root
 
 @data_app.command("stats")
 def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<domain>/<task>/")]) -> None:
-    """Histories, steps and episodes per task."""
+    """Histories, steps and episodes per task, and the mean return of each history's i-th episode."""
     from vintix.data import summarize_dataset
     from vintix.errors import DatasetError
+    from vintix.evaluate import shots_to_show
 
     try:
         summaries = summarize_dataset(root)
@@ -647,6 +648,17 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
         table.add_row(s.domain, s.task_name, str(s.histories), f"{s.steps:,}", f"{s.episodes:,}",
                       f"{s.mean_episode_length:.1f}")
     console.print(table)
+    # How the histories improve, episode by episode: what a demonstrator's own check looks at first.
+    longest = max((len(s.return_by_episode) for s in summaries), default=0)
+    shown = shots_to_show(longest)
+    returns = Table(title="mean return of each history's i-th episode (over the histories that have one)")
+    returns.add_column("task")
+    for index in shown:
+        returns.add_column(f"ep {index}", justify="right")
+    for s in summaries:
+        values = s.return_by_episode
+        returns.add_row(s.task_name, *(f"{values[i - 1]:.3g}" if i <= len(values) else "" for i in shown))
+    console.print(returns)
 
 
 OWN_EXPERT_HELP = ("scale each history by its own noise-free episodes instead of the table's expert (fair where "

@@ -265,19 +265,33 @@ class TaskSummary:
     episodes: int
     mean_episode_length: float
     """steps / episodes (NaN without episodes)."""
+    return_by_episode: np.ndarray
+    """the mean return of each history's i-th episode, over the histories that have one (how the histories
+    improve: a check of a demonstrator; the format stores no success flag)"""
 
 
 def summarize_dataset(root: PathLike) -> list[TaskSummary]:
-    """Per-task counts, reading only the step_num column of each history; run validation first."""
+    """Per-task counts and returns by episode index, reading the step_num and reward columns of each history; run
+    validation first."""
     summaries = []
     for task in find_tasks(root):
-        steps = episodes = 0
+        steps = 0
+        returns = []
         for path in task.history_paths:
             with LearningHistory(path) as history:
                 steps += history.num_steps
-                episodes += len(history.episode_starts)
+                returns.append(history.episode_returns())
+        episodes = sum(len(r) for r in returns)
         mean_length = steps / episodes if episodes else float("nan")
-        summaries.append(
-            TaskSummary(task.domain, task.task_name, len(task.history_paths), steps, episodes, mean_length)
-        )
+        summaries.append(TaskSummary(task.domain, task.task_name, len(task.history_paths), steps, episodes,
+                                     mean_length, _mean_by_index(returns)))
     return summaries
+
+
+def _mean_by_index(series: list[np.ndarray]) -> np.ndarray:
+    """Element i: the mean of ``s[i]`` over the series long enough to have one."""
+    longest = max((len(s) for s in series), default=0)
+    padded = np.full((len(series), longest), np.nan)
+    for row, values in zip(padded, series, strict=True):
+        row[: len(values)] = values
+    return np.nanmean(padded, axis=0) if longest else np.zeros(0)  # every column has a value: no empty mean

@@ -29,9 +29,10 @@ BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample", "l
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
 rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
-probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert).
-'learner' and 'posterior-search' (the discrete benchmarks only, `vintix.demonstrators.icrl`): an RL algorithm
-learning from scratch, AD's own histories; the goal posterior searched along a fixed spiral."""
+probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert);
+'posterior-search': the goals not ruled out, searched in a fixed order across episodes, for sparse rewards (on the
+discrete benchmarks, `vintix.demonstrators.icrl`, the cells along a spiral). 'learner' (the discrete benchmarks
+only): an RL algorithm learning from scratch, AD's own histories."""
 PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
 AIMS = ("hand", "gripper-centre")
@@ -88,7 +89,7 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
             raise VintixError(f"{spec.name!r}: posterior-search walks a room's cells; on a bandit use "
                               "posterior-sampling (Thompson sampling)")
         return icrl_demonstrator(behaviour)
-    if behaviour in ("learner", "posterior-search"):
+    if behaviour == "learner":
         raise VintixError(f"{spec.name!r}: behaviour {behaviour!r} exists for the discrete benchmarks (domain icrl: "
                           "Dark Room, Key-to-Door, the bandit); choose another")
     if behaviour != "expert":

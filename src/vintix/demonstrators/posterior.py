@@ -106,12 +106,37 @@ class PosteriorSettings:
     units), so that the probe passes through fewer goals by chance while its rewards still place them.
     Meta-World reach, probe-then-sample, 20 unseen goals: the probing episode succeeds on 0.50 of them
     at 0, on 0.25 at 0.06 m, and the 7 episodes after it return 708-819 and 779-812"""
+    search: bool = False
+    """sparse rewards: a search instead of a draw. The candidates are the same for every history (drawn with
+    `SEARCH_SEED`) and ordered as a tour from the one nearest the goal box's centre; every step aims at the first
+    one not ruled out, and a candidate is ruled out for good once its reward differs from the reward seen by
+    more than `reward_tolerance`. So each episode continues the sweep where the last one stopped, and once a
+    reward is paid only the candidates that explain it remain and every episode goes there: a deterministic
+    function of the rewards so far, as a model can imitate. Needs update_every 1 (a step that is not weighed
+    rules nothing out)"""
     lapse_probability: float = 0.0
     """with sample_after_probe: the chance that an episode after the first aimed one is a lapse, a clean episode
     that fails: aimed at a goal drawn from the prior, or, for an expert that handles an object (`fumble`), aimed
     at its guess with the object mishandled (either with equal chance). Later episodes aim at the posterior
     again, and every target stays the goal-aware expert's action, so the episode after a failure is never its
     copy: a model that learned to repeat its last episode repeats its own failures for good"""
+
+
+SEARCH_SEED = 0
+"""Seed of the candidates of `PosteriorSettings.search`: one set, and one search order, for every history."""
+
+
+def search_order(candidates: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """`candidates` [n, goal_dim] reordered as a greedy nearest-neighbour tour that begins at the one nearest
+    `start`: a sweep that walks from each candidate to the nearest one not visited yet."""
+    left = list(range(len(candidates)))
+    here, tour = start, []
+    while left:
+        nearest = left[int(np.argmin(np.linalg.norm(candidates[left] - here, axis=1)))]
+        left.remove(nearest)
+        tour.append(nearest)
+        here = candidates[nearest]
+    return candidates[tour]
 
 
 # Per encoder group of hidden-goal tasks: Meta-World rewards lie in [0, 10], the toy task's in [0, 1];
@@ -135,12 +160,14 @@ SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "point-goal": 0.4, "mujoco-rea
 
 def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0,
                        lapse_probability: float = 0.0, reward_tolerance: float = 0.0) -> PosteriorSettings:
-    """The settings of `behaviour` ('posterior-sampling', 'probing' or 'probe-then-sample') on hidden-goal tasks of
-    encoder group `group`, the probe's corners `probe_margin` outside the goal box (`PosteriorSettings.probe_margin`),
-    with 'probe-then-sample' a lapse in an episode after the first aimed one at `lapse_probability`, and the
-    likelihood's `reward_tolerance` instead of the behaviour's own where it is not 0."""
+    """The settings of `behaviour` ('posterior-sampling', 'posterior-search', 'probing' or 'probe-then-sample') on
+    hidden-goal tasks of encoder group `group`, the probe's corners `probe_margin` outside the goal box
+    (`PosteriorSettings.probe_margin`), with 'probe-then-sample' a lapse in an episode after the first aimed one at
+    `lapse_probability`, and the likelihood's `reward_tolerance` instead of the behaviour's own where it is not 0."""
     settings = DEFAULT_SETTINGS[group]
-    if behaviour != "posterior-sampling":
+    if behaviour == "posterior-search":  # every step weighed: a step that is not rules nothing out
+        settings = replace(settings, search=True, update_every=1)
+    elif behaviour != "posterior-sampling":
         settings = replace(settings, probe_steps=PROBE_STEPS[group], probe_margin=probe_margin)
     if behaviour == "probe-then-sample":
         settings = replace(settings, sample_after_probe=True, probe_target=True,
@@ -172,6 +199,8 @@ class _GoalPosterior:
         self.fumbling = False
         """whether this episode is a lapse that mishandles the object"""
         self.corners = _probe_corners(self.low - settings.probe_margin, self.high + settings.probe_margin)
+        self.alive = np.ones(len(candidates), dtype=bool)
+        """with `search`: the candidates no reward has ruled out"""
         self.guess = self._draw()
 
     @property
@@ -183,9 +212,16 @@ class _GoalPosterior:
         """The goal this step aims at: a probe corner in a probing first episode, else the episode's guess."""
         if self.probing:
             return self.corners[min(self.steps // self.settings.probe_steps, len(self.corners) - 1)]
+        if self.settings.search:
+            return self.candidates[np.argmax(self.alive)]
         return self.guess
 
     def update(self, candidate_rewards: np.ndarray, reward: float) -> None:
+        if self.settings.search:
+            self.alive &= np.abs(candidate_rewards - reward) <= self.settings.reward_tolerance
+            if not self.alive.any():  # no candidate explains every reward (none close enough): search again
+                self.alive[:] = True
+            return
         self.log_weights -= 0.5 * ((candidate_rewards - reward) / self.settings.reward_tolerance) ** 2
         self.log_weights -= self.log_weights.max()  # keep the best candidate at weight 1 (no underflow)
 
@@ -202,7 +238,7 @@ class _GoalPosterior:
         probability, make the episode a lapse (`PosteriorSettings.lapse_probability`: with `can_fumble`, half
         of the lapses mishandle the object instead of aiming at a prior draw)."""
         weights = self._weights()
-        if 1.0 / np.sum(weights**2) < len(weights) / 2:
+        if not self.settings.search and 1.0 / np.sum(weights**2) < len(weights) / 2:
             self._resample_and_jitter()
         aims_best = self.settings.probe_steps and not self.settings.sample_after_probe
         self.guess = self.candidates[np.argmax(self.log_weights)] if aims_best else self._draw()
@@ -233,11 +269,17 @@ class PosteriorSamplingDemonstrator:
         self._posteriors: list[_GoalPosterior] = []
 
     def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
-        self._posteriors = [
-            _GoalPosterior(env.unwrapped.goal_box(), rng, self.settings,  # type: ignore[attr-defined]
-                           env.unwrapped.goal_prior(rng, self.settings.candidates))  # type: ignore[attr-defined]
-            for env, rng in zip(envs, rngs, strict=True)
-        ]
+        self._posteriors = [_GoalPosterior(env.unwrapped.goal_box(), rng, self.settings,  # type: ignore[attr-defined]
+                                           self._candidates(env.unwrapped, rng))
+                            for env, rng in zip(envs, rngs, strict=True)]
+
+    def _candidates(self, env: gym.Env, rng: np.random.Generator) -> np.ndarray:
+        """Goals drawn from the env's prior: the history's own draws, or with `search` one fixed tour for all."""
+        if not self.settings.search:
+            return env.goal_prior(rng, self.settings.candidates)  # type: ignore[attr-defined]
+        draws = env.goal_prior(np.random.default_rng(SEARCH_SEED), self.settings.candidates)  # type: ignore[attr-defined]
+        low, high = env.goal_box()  # type: ignore[attr-defined]
+        return search_order(draws, (np.asarray(low) + np.asarray(high)) / 2)
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         if len(self._posteriors) != len(envs):
