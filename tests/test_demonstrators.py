@@ -482,3 +482,18 @@ def test_a_reward_reading_demonstrator_is_told_each_step_in_the_documented_order
         assert [call[3] for call in mine] == rows["reward"].tolist()  # the rewards, as stored
         assert [t[index] for t in targets] == rows["demonstrator_action"].tolist()  # expert_act: the target
         assert len({call[5] for call in mine}) == 1  # the env's reset after an episode keeps its hidden goal
+
+
+def call_log(task):
+    """`CallLog` as a recipe or `--demonstrator` names a demonstrator: a callable of the task name."""
+    return CallLog()
+
+
+def test_the_cli_checks_a_users_own_demonstrator_per_episode_and_refuses_one_that_cannot_be_aimed():
+    result = CliRunner().invoke(app, ["demonstrator", "histories", "--task", "DarkRoom-v0", "--demonstrator",
+                                      "test_demonstrators:call_log", "--seeds", "3", "--episodes", "2"])
+    assert result.exit_code == 0, result.output
+    assert "test_demonstrators:call_log: 3 histories" in " ".join(result.output.split())
+    refused = CliRunner().invoke(app, ["demonstrator", "goal-blind", "--task", "DarkRoom-v0", "--demonstrator",
+                                       "test_demonstrators:call_log"])
+    assert refused.exit_code == 2 and "has no act_toward(observations, goals)" in " ".join(refused.output.split())

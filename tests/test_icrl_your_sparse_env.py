@@ -19,4 +19,4 @@ def test_following_the_page_gives_a_model_that_finds_a_sparse_goal_from_its_rewa
     true, zero = success_by_shot(tmp_path / "results" / "true"), success_by_shot(tmp_path / "results" / "zero")
     later = [2, 3, 4, 5, 6]
     assert np.mean([true[s] - zero[s] for s in later]) >= 0.5  # the rewards, not the context's length, do it
-    assert (tmp_path / "report" / "report.md").is_file()
+    assert (tmp_path / "report" / "report.md").is_file() and (tmp_path / "goal-blind.csv").is_file()

@@ -447,6 +447,9 @@ def demonstrator_goal_blind(
         "goal-blind.csv"),
     update_package_table: Annotated[bool, typer.Option(
         "--update-package-table", help="also rewrite the package's table (demonstrators/goal_blind.csv)")] = False,
+    demonstrator: Annotated[str | None, typer.Option(
+        metavar="MODULE:CALLABLE", help="your own goal-conditioned expert (called with the task name; it must have "
+        "act_toward(observations, goals)), for a task of your own; default: the package's scripted expert")] = None,
 ) -> None:
     """Which tasks hide information: the scripted expert's success aimed at the true goal vs at the mean goal."""
     from vintix.demonstrators.goal_blind import goal_blind_baseline, goal_blind_path, write_goal_blind
@@ -454,7 +457,8 @@ def demonstrator_goal_blind(
     try:
         specs = resolve_tasks(task)
         command = f"vintix demonstrator goal-blind --task {{task}} --seeds {seeds} --first-seed {first_seed}"
-        results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name))
+        command += f" --demonstrator {demonstrator}" if demonstrator else ""
+        results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name), demonstrator)
                    for spec in tqdm(specs, desc="goal-blind baselines", disable=None)]
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
@@ -472,7 +476,8 @@ def demonstrator_goal_blind(
 
 @demonstrator_app.command("histories")
 def demonstrator_histories(
-    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World, toy or Reacher-hidden-v5)")],
+    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World, toy or Reacher-hidden-v5), or your own "
+                                      "with --demonstrator")],
     behaviour: Annotated[str, typer.Option(help="how a demonstrator that never sees the goal plays: "
                                            "posterior-sampling, probing or probe-then-sample")] = "probe-then-sample",
     seeds: Annotated[int, typer.Option(min=1, help="histories, env seeds first-seed, first-seed + 1, ...")] = 20,
@@ -488,6 +493,9 @@ def demonstrator_histories(
     reward_tolerance: Annotated[float, typer.Option(
         min=0.0, help="the std of the reward likelihood, how far aimed episodes miss while they close in (0: the "
                       "behaviour's default)")] = 0.0,
+    demonstrator_source: Annotated[str | None, typer.Option(
+        "--demonstrator", metavar="MODULE:CALLABLE", help="your own reward-reading demonstrator (called with the task "
+        "name, as a recipe's demonstrator: is), for a task of your own; the behaviour options are then unused")] = None,
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
@@ -496,12 +504,17 @@ def demonstrator_histories(
     from vintix.demonstrators.scores import history_outcomes
 
     try:
-        demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim,
-                                         lapse_probability=lapse_probability, reward_tolerance=reward_tolerance)
+        if demonstrator_source is not None:
+            behaviour = demonstrator_source
+            demonstrator = load_demonstrator(task, source=demonstrator_source)
+        else:
+            demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim,
+                                             lapse_probability=lapse_probability, reward_tolerance=reward_tolerance)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
             inferring = ", ".join(b for b in BEHAVIOURS if b != "expert")
-            raise VintixError(f"--behaviour {behaviour}: the goal-aware expert does not learn within a history; choose "
-                              f"one of {inferring} (`vintix demonstrator eval` scores the expert)")
+            raise VintixError(f"{behaviour}: a demonstrator that does not read its rewards (it has no begin, observe "
+                              f"and expert_act: docs/demonstrators.md) does not learn within a history; choose a "
+                              f"behaviour among {inferring} (`vintix demonstrator eval` scores the expert)")
         outcomes = history_outcomes(task, demonstrator, range(first_seed, first_seed + seeds), episodes)
     except (VintixError, ValueError) as error:
         raise _fail(error) from None

@@ -92,13 +92,17 @@ class AimedExpert:
         return np.clip(self.expert.act_toward(observations, goals), space.low, space.high)
 
 
-def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, command: str = "") -> GoalBlindResult:
-    """Measure `task`'s goal-blind baseline on env seeds ``first_seed ..``, beside the true goal's."""
+def goal_blind_baseline(task: str, seeds: int = 20, first_seed: int = 100, command: str = "",
+                        source: str | None = None) -> GoalBlindResult:
+    """Measure `task`'s goal-blind baseline on env seeds ``first_seed ..``, beside the true goal's: the package's
+    scripted expert, or the goal-conditioned expert `source` (``module:callable``, as a recipe names one)."""
     spec = get_task(task)
-    expert = load_demonstrator(spec.name)
+    expert = load_demonstrator(spec.name, source=source)
     if not hasattr(expert, "act_toward"):
-        raise VintixError(f"{spec.name!r} has no hidden goal a scripted expert can be aimed at (Meta-World, toy and "
-                          "Reacher-hidden-v5 tasks do); a goal-blind baseline needs one")
+        whose = f"the demonstrator {source!r}" if source else "the package's"
+        raise VintixError(f"{spec.name!r}: {whose} expert has no act_toward(observations, goals), so it cannot be "
+                          "aimed at a goal it is given (the scripted experts of Meta-World, toy and Reacher-hidden-v5 "
+                          "tasks can; for your own task, give --demonstrator MODULE:CALLABLE returning one that can)")
     true_returns, true_success = episode_outcomes(spec.name, AimedExpert(expert, None), seeds, first_seed)  # type: ignore[arg-type]
     blind_returns, blind_success = episode_outcomes(spec.name, AimedExpert(expert, mean_goal(spec.name)),  # type: ignore[arg-type]
                                                     seeds, first_seed)
