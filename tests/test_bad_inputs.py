@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -33,6 +34,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+import vintix
 from conftest import HANG_GUARD_S, child_env
 from vintix.cli import app
 from vintix.errors import VintixError
@@ -975,6 +977,20 @@ def agent(tasks: list[str] | None = None) -> object:
 
 api_error("agent", "act before reset", lambda: agent().act([np.zeros(39)], [0.0], [True]), "reset")
 api_error("agent", "reset with no tasks", lambda: agent([]), "at least one task")
+# Issue 55, class 6: every Python entry point checks its arguments' types and ranges.
+api_error("agent", "reset with a None task", lambda: agent([None]), "must be task names")  # type: ignore[list-item]
+api_error("agent", "reset with one name, not a list", lambda: agent("reach-v3"), "a list of task names")  # type: ignore[arg-type]
+for threads in (1.5, "2", True, 2**40, 100000, 0, -1):
+    api_error("agent", f"Agent(threads={threads!r})",
+              lambda threads=threads: __import__("vintix").Agent.from_pretrained(model_checkpoint(), threads=threads),
+              "whole number of CPU threads from 1 to 1024")
+for flag in ("false", 1, "yes"):
+    api_error("trust", f"load_pretrained(trust_code={flag!r})",
+              lambda flag=flag: __import__("vintix.model").model.load_pretrained(model_checkpoint(), trust_code=flag),
+              "trust_code must be True or False")
+api_error("train", "TrainConfig(threads=5000)", lambda: __import__("vintix.train").train.TrainConfig(threads=5000),
+          "threads must be 0 (auto) or a number of CPU threads up to 1024")
+cli_error("train", "vintix train --threads -1", ["train", "--threads", "-1"], "--threads")
 api_error("agent", "reset with an unknown task", lambda: agent(["reech-v3"]), "Did you mean")
 api_error("agent", "reset with a task of another group", lambda: agent(["Hopper-v5"]), "no encoder")
 api_error("agent", "reset with too few action spaces", lambda: agent().reset(["reach-v3", "push-v3"], []),
@@ -1301,6 +1317,47 @@ def dataset_naming_code() -> object:
 
 api_error("trust", "make_env of a task a dataset's task JSON names, with a factory", dataset_naming_code,
           "VINTIX_TRUST_CODE=1")
+
+
+@once
+def dataset_naming_an_env_module() -> Path:
+    """A dataset whose task JSON names ``env_id: trust_probe_env:ProbeEnv-v0``, the module shipped beside it (in the
+    folder a command runs from): importing it leaves a mark."""
+    from vintix.data import LearningHistoryWriter, write_task_metadata
+    from vintix.data.hdf5 import TRUNCATED
+
+    root = WORK / "data-names-env-module"
+    task = {"env_id": "trust_probe_env:ProbeEnv-v0", "obs_dim": 2, "act_dim": 1, "episode_length": 5}
+    folder = write_task_metadata(root / "custom" / "probe-env", "probe-env", 2, 1, custom_task=task).parent
+    with LearningHistoryWriter(folder / "history-0000.h5", 2, 1, episode_ends=True) as writer:
+        writer.append(np.zeros((5, 2)), np.zeros((5, 1)), np.zeros(5), np.arange(5),
+                      episode_end=np.array([0, 0, 0, 0, TRUNCATED]), final_observation=np.zeros((5, 2)))
+    (root / "trust_probe_env.py").write_text(
+        "from pathlib import Path\n\nPath(__file__).with_name('imported').touch()\n")
+    sys.path.insert(0, str(root))  # as if run from the dataset's folder, where Python imports from
+    return root
+
+
+def env_module_imported() -> str | None:
+    mark = WORK / "data-names-env-module" / "imported"
+    return "the dataset's module was imported" if mark.exists() else None
+
+
+cli_error("trust", "export-minari of a dataset whose task JSON names a module:EnvId shipped beside it", lambda: [
+    "data", "export-minari", dataset_naming_an_env_module(), "--dataset-id", "probe/probe-env-v0"], "--trust-code",
+    after=env_module_imported)
+
+
+def test_every_import_of_named_code_passes_the_trust_gate():
+    """`vintix.tasks.custom.import_code` is the one place code named by a file is imported: an ``import_module`` (or
+    ``__import__``) anywhere else in the package could import what a checkpoint or dataset names, past the gate."""
+    allowed = {"tasks/custom.py": 1,  # the gate itself
+               "evaluate/__init__.py": 1,  # the package's own lazy submodules, a fixed table
+               "demonstrators/base.py": 1}  # stable_baselines3 or sbx, a fixed table (_MODEL_LIBRARIES)
+    package = Path(vintix.__file__).parent
+    found = {str(path.relative_to(package)): len(re.findall(r"\bimport_module\(|__import__\(", path.read_text()))
+             for path in package.rglob("*.py")}
+    assert {name: count for name, count in found.items() if count} == allowed
 
 
 # Plug-ins (issue 47, class 6): code vintix is told to call that fails ends in one line naming it and the fix.

@@ -75,3 +75,15 @@ def check_field_types(instance: Any, error: type[Exception]) -> None:
         if converted is _INVALID:
             raise error(f"{type(instance).__name__}.{field.name} must be {type_name(hints[field.name])}, got {value!r}")
         object.__setattr__(instance, field.name, converted)  # works for frozen dataclasses too
+
+
+MAX_THREADS = 1024
+"""The most torch CPU threads vintix sets: more is a typo (torch would try to start them all)."""
+
+
+def check_threads(threads: object, what: str = "threads") -> int:
+    """`threads` as a count of torch CPU threads, 1 to `MAX_THREADS`, or a ValueError naming `what` (a bool, a
+    float or a string is not a count, even where Python would take it as one)."""
+    if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
+        raise ValueError(f"{what} must be a whole number of CPU threads from 1 to {MAX_THREADS}, got {threads!r}")
+    return threads

@@ -27,6 +27,7 @@ import torch
 from vintix.agent.cache import KVCache, cached_backbone
 from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
+from vintix.fields import check_threads
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix, normalize_inputs
 from vintix.tasks import ActionSpaceError, action_space_of, find_task, get_task, task_action_space
@@ -257,9 +258,10 @@ class Agent:
         core) a core another job holds stalls every step (a shipped model's step on a 2-core CPU with a
         training on it: 20.7 ms mean with 2 threads, 1.3 ms with 1)."""
         if threads is not None:
-            if threads < 1:
-                raise AgentInputError(f"threads must be >= 1 (or None for torch's setting), got {threads}")
-            torch.set_num_threads(threads)
+            try:
+                torch.set_num_threads(check_threads(threads))
+            except ValueError as error:
+                raise AgentInputError(f"{error} (or None for torch's setting)") from None
         self.model = model
         self.seed = seed
         self._generator = torch.Generator(self.device)
@@ -311,8 +313,12 @@ class Agent:
                 f"agent.reset cleared a context of {self.cache.length} steps, and with it what the agent learned "
                 "in context. For a new episode pass episode_start=True to act/predict instead; to start a new run, "
                 "reset(..., discard_context=True)", ContextDiscardedWarning, stacklevel=3)
-        if not tasks:
-            raise AgentInputError("reset needs at least one task")
+        if isinstance(tasks, str) or not tasks:
+            raise AgentInputError("reset needs at least one task: a list of task names, one per env (e.g. "
+                                  f"['reach-v3']), got {tasks!r}")
+        wrong = [task for task in tasks if not isinstance(task, str) or not task]
+        if wrong:
+            raise AgentInputError(f"reset's tasks must be task names (strings), got {wrong[0]!r} among them")
         if action_spaces is not None and len(action_spaces) != len(tasks):
             raise AgentInputError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces; give one per task")
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)

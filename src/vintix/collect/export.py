@@ -16,7 +16,6 @@ included, read off one env. Only a task this process does not know gets unbounde
 
 from __future__ import annotations
 
-import importlib
 import os
 import re
 import warnings
@@ -32,6 +31,7 @@ from vintix.collect.noise import NoiseSchedule
 from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
 from vintix.errors import VintixError
 from vintix.tasks import TaskSpec, action_space_of, find_task, gymnasium_id, make_env
+from vintix.tasks.custom import import_code
 
 
 def check_dataset_id(dataset_id: str) -> None:
@@ -101,8 +101,8 @@ def _env_spec(spec: TaskSpec | None) -> gym.envs.registration.EnvSpec | None:
         return None
     env_id = gymnasium_id(spec) if spec.domain != "custom" else str(spec.env_id)
     module, _, name = env_id.rpartition(":")
-    if module:
-        importlib.import_module(module)
+    if module:  # through the trust gate: a dataset's task JSON may name this module
+        import_code(module, f"task {spec.name!r}: env_id {env_id!r}", spec.named_by)
     return gym.spec(name)
 
 

@@ -43,6 +43,7 @@ import os
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
@@ -204,11 +205,26 @@ def load_plugins() -> None:
         register_tasks_file(file)
 
 
-def load_callable(reference: str, what: str) -> Callable[..., Any]:
-    """The object ``module:attribute`` names (imported), which must be callable; `what` names it in errors."""
+def import_code(module: str, what: str, named_by: str | None = None) -> ModuleType:
+    """The one gate of every import of code that vintix is told to run by name: env factories, ``module:EnvId``
+    ids, demonstrators, whatever path a file's name reaches (tests/test_bad_inputs.py fails on an
+    ``import_module`` anywhere else). `named_by`: the checkpoint's or dataset's file that named it, if not the
+    user: then the import is refused (UntrustedCodeError) unless code is trusted (`code_trusted`)."""
+    if named_by is not None and not code_trusted():
+        raise UntrustedCodeError(
+            f"{what} comes from {named_by}, which names code to run: module {module!r}. vintix runs code that a "
+            "checkpoint or dataset names only when you say so: register the task yourself (a tasks file: vintix "
+            f"--tasks-file FILE, or {ENV_VARIABLE}), or, if you trust where the file came from, vintix --trust-code "
+            f"<command> ({TRUST_VARIABLE}=1; in Python, trust_code=True)")
+    return importlib.import_module(module)
+
+
+def load_callable(reference: str, what: str, named_by: str | None = None) -> Callable[..., Any]:
+    """The object ``module:attribute`` names (imported through `import_code`), which must be callable; `what` names
+    it in errors, `named_by` the file that named it (None: the user)."""
     module, _, attribute = reference.partition(":")
     try:
-        target = importlib.import_module(module)
+        target: Any = import_code(module, what, named_by)
         for part in attribute.split("."):
             target = getattr(target, part)
     except (ImportError, AttributeError) as error:
@@ -256,12 +272,13 @@ def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
     refuse_untrusted_code(spec)
     env: gym.Env
     if spec.env_factory is not None:
-        factory = load_callable(spec.env_factory, f"task {spec.name!r}: env_factory")
+        factory = load_callable(spec.env_factory, f"task {spec.name!r}: env_factory", spec.named_by)
         made = call_plugin(f"task {spec.name!r}{_from(spec)}: its env_factory {spec.env_factory!r}",
                            "Fix the factory: the error is in its code", factory, **kwargs)
         env = gym.wrappers.TimeLimit(made, spec.episode_length)
     else:
         assert spec.env_id is not None  # register_task requires one of the two
+        import_env_module(spec)
         try:
             env = call_plugin(f"task {spec.name!r}{_from(spec)}: gymnasium's make({spec.env_id!r})",
                               "Fix the env (or its registration)", gym.make, spec.env_id,
@@ -273,6 +290,13 @@ def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
             raise
     check_env_fits(spec, env)
     return env
+
+
+def import_env_module(spec: TaskSpec) -> None:
+    """Import the module of a ``module:EnvId`` env id through the gate (`import_code`), so that gymnasium, which
+    would import it itself, finds it imported."""
+    if spec.env_id is not None and ":" in spec.env_id:
+        import_code(spec.env_id.rpartition(":")[0], f"task {spec.name!r}: env_id {spec.env_id!r}", spec.named_by)
 
 
 def check_env_fits(spec: TaskSpec, env: gym.Env) -> None:
@@ -312,6 +336,8 @@ def register_specs(specs: Mapping[str, Any], where: str, trust_code: bool = Fals
     """Register the custom task specs that the file `where` (a checkpoint's config, a dataset's task JSON, a
     results folder's run.json) keeps and this process does not know yet. Those are marked as named by
     `where`, and the code they name runs only when trusted (this module's docstring), or with `trust_code`."""
+    if not isinstance(trust_code, bool):  # "false" is a true value: a string must not decide to run code
+        raise VintixError(f"trust_code must be True or False, got {trust_code!r} ({type(trust_code).__name__})")
     for name, fields in specs.items():
         spec = spec_from_mapping(name, fields, where)
         check_fits_registry(spec)
@@ -319,6 +345,6 @@ def register_specs(specs: Mapping[str, Any], where: str, trust_code: bool = Fals
             registry._custom[spec.name] = replace(spec, named_by=None if trust_code else where)
 
 
-__all__ = ["TaskSpecError", "UntrustedCodeError", "check_env_fits", "code_trusted", "custom_specs", "load_callable",
-           "make_custom_env", "register_specs",
+__all__ = ["TaskSpecError", "UntrustedCodeError", "check_env_fits", "code_trusted", "custom_specs", "import_code",
+           "import_env_module", "load_callable", "make_custom_env", "register_specs",
            "register_task", "register_tasks_file"]

@@ -15,7 +15,7 @@ from typing import Any
 import yaml
 
 from vintix.errors import VintixError
-from vintix.fields import check_field_types
+from vintix.fields import MAX_THREADS, check_field_types
 from vintix.model.model import PRESETS, ModelConfig, preset
 
 
@@ -155,6 +155,9 @@ class TrainConfig:
         if bad:
             raise ConfigError(f"out of range: {', '.join(bad)} (lr > 0; min_lr_fraction in [0, 1]; betas in [0, 1); "
                               "expert_tail_fraction in (0, 1])")
+        if self.threads > MAX_THREADS:
+            raise ConfigError(f"threads must be 0 (auto) or a number of CPU threads up to {MAX_THREADS}, got "
+                              f"{self.threads}")
         if self.task_sampling not in ("uniform", "volume"):
             raise ConfigError(f"task_sampling must be 'uniform' or 'volume', got {self.task_sampling!r}")
         if self.expert_rows not in ("auto", "tail"):
