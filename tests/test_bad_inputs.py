@@ -1360,6 +1360,104 @@ def test_every_import_of_named_code_passes_the_trust_gate():
     assert {name: count for name, count in found.items() if count} == allowed
 
 
+# Output folders (issue 55, class 2): a link or special file planted in a folder a command writes never carries a
+# write outside it, nor hangs a read; a second writer into a folder is refused, not mixed.
+def victim() -> Path:
+    """A file outside every output folder that a planted link points at; it must stay as it is."""
+    path = WORK / "victim.txt"
+    if not path.exists():
+        path.write_text("precious\n")
+    return path
+
+
+def victim_changed() -> str | None:
+    return None if victim().read_text() == "precious\n" else f"{victim()} was written: {victim().read_text()[:60]!r}"
+
+
+def planted(name: str, folder: Callable[[], Path], relative: str, target: Callable[[], Path] = victim
+            ) -> Callable[[], Path]:
+    """A copy of `folder` (a dataset or run) with `relative` a symbolic link to `target`."""
+    @once
+    def make() -> Path:
+        copy = WORK / f"planted-{name}"
+        shutil.copytree(folder(), copy, symlinks=True)
+        link = copy / relative
+        link.parent.mkdir(parents=True, exist_ok=True)
+        link.unlink(missing_ok=True)
+        link.symlink_to(target())
+        return copy
+    return make
+
+
+cli_error("outputs", "collect into a dataset whose .vintix-lock is a link to a file of yours", lambda: [
+    "collect", "--task", "reach-v3", "--histories", "1", "--steps", "50", "--out",
+    planted("lock", clean_data, ".vintix-lock")()], "symbolic link", after=victim_changed)
+cli_error("outputs", "collect into a dataset with a history's temporary planted as a link", lambda: [
+    "collect", "--task", "reach-v3", "--histories", "3", "--steps", "50", "--out",
+    planted("partial", clean_data, "metaworld/reach-v3/history-0002.h5.partial")()], "symbolic link",
+    after=victim_changed)
+cli_error("outputs", "resume training in a run whose log.csv is a link to a file of yours", lambda: [
+    "train", "--data", clean_data(), "--out", planted("log", trained_run, "log.csv")()], "symbolic link",
+    after=victim_changed)
+cli_error("outputs", "resume training in a run with a checkpoint's temporary folder planted as a link", lambda: [
+    "train", "--data", clean_data(), "--out",
+    planted("step-partial", trained_run, "checkpoints/step-00000099.partial", lambda: WORK)()], "symbolic link")
+
+
+@once
+def results_with_a_fifo() -> Path:
+    folder = WORK / "results-fifo"
+    folder.mkdir()
+    os.mkfifo(folder / "episodes.csv")
+    return folder
+
+
+cli_error("outputs", "eval into a folder whose episodes.csv is a FIFO (a read would hang)", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "1", "--out",
+    results_with_a_fifo(), "--overwrite"], "a FIFO")
+
+
+LOCK = ".vintix-lock"
+
+
+def held(folder: Callable[[], Path], argv: Callable[[Path], list[object]]) -> Callable[[], str | None]:
+    """Run `argv(folder)` while another process holds `folder`'s lock: refused at once, naming the holder, and
+    nothing of the folder changed."""
+    def check() -> str | None:
+        from vintix.atomic import folder_lock
+
+        target = folder()
+        before = sorted((p.name, p.stat().st_size) for p in target.rglob("*") if p.is_file() and p.name != LOCK)
+        holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from vintix.atomic import folder_lock\n"
+                                   "with folder_lock(sys.argv[1], 'a test holding it'):\n    print('held', flush=True)"
+                                   "\n    time.sleep(3600)", str(target)], stdout=subprocess.PIPE, text=True,
+                                  env=child_env())
+        try:
+            assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+            code, output = invoke(*argv(target))
+        finally:
+            holder.kill()
+            holder.wait()
+        with folder_lock(target, "the test, after"):  # released when its holder died
+            pass
+        after = sorted((p.name, p.stat().st_size) for p in target.rglob("*") if p.is_file() and p.name != LOCK)
+        if code != 2 or "in use by a test holding it" not in output:
+            return f"exit {code}: {output[-300:]}"
+        return None if after == before else f"the folder changed: {before} -> {after}"
+    return check
+
+
+documented("outputs", "eval into a results folder another eval holds: refused, not mixed", held(
+    eval_results, lambda out: ["eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1",
+                               "--seeds", "1", "--out", out, "--overwrite"]))
+documented("outputs", "report into a folder another report holds: refused", held(
+    lambda: empty_dir("report-held")(), lambda out: ["report", eval_results(), "--out", out]))
+documented("outputs", "import-official into a folder another import holds: refused", held(
+    lambda: empty_dir("import-held")(), lambda out: ["import-official", release_snapshot(), "--out", out]))
+documented("outputs", "export-official into a folder another export holds: refused", held(
+    lambda: empty_dir("export-held")(), lambda out: ["export-official", model_checkpoint(), "--out", out]))
+
+
 # Plug-ins (issue 47, class 6): code vintix is told to call that fails ends in one line naming it and the fix.
 def plugin_task(name: str, **fields: object) -> Callable[[], object]:
     def call() -> object:

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import errno
 import fcntl
+import glob
 import os
 import re
 import shutil
+import stat
+import tempfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,11 +23,31 @@ if TYPE_CHECKING:
 PARTIAL_SUFFIX = ".partial"
 
 
-def partial_path(path: str | os.PathLike[str]) -> Path:
-    """The temporary sibling that holds a file until it is complete (same directory, so the final
-    rename is atomic on POSIX filesystems)."""
+def new_partial_file(path: str | os.PathLike[str]) -> Path:
+    """A new, empty temporary file beside `path` that holds it until it is complete (same directory, so the
+    final rename is atomic on POSIX filesystems): ``<name>.<random>.partial``, created exclusively, so a file or a
+    symbolic link planted under a predictable name can never receive the write."""
     path = Path(path)
-    return path.with_name(path.name + PARTIAL_SUFFIX)
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f"{path.name}.", suffix=PARTIAL_SUFFIX)
+    os.close(handle)
+    return Path(name)
+
+
+def remove_leftovers(path: str | os.PathLike[str]) -> None:
+    """Delete the temporaries of `path` that a killed process left (`new_partial_file`'s). Only for a writer that
+    holds `path`'s folder (`folder_lock`): another process's temporary in progress would go too. Unlinking removes
+    a link itself, never what it points to."""
+    path = Path(path)
+    for leftover in path.parent.glob(f"{glob.escape(path.name)}*{PARTIAL_SUFFIX}"):
+        if not leftover.is_dir():
+            leftover.unlink(missing_ok=True)
+
+
+def new_partial_folder(path: str | os.PathLike[str]) -> Path:
+    """A new, empty temporary folder beside `path` to assemble it in, created exclusively (`new_partial_file`)."""
+    path = Path(path)
+    make_parent_dirs(path)
+    return Path(tempfile.mkdtemp(dir=path.parent, prefix=f"{path.name}.", suffix=PARTIAL_SUFFIX))
 
 
 def check_output_path(path: str | os.PathLike[str]) -> None:
@@ -81,7 +105,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     when the block raises."""
     final = Path(path)
     make_parent_dirs(final)
-    temporary = partial_path(final)
+    temporary = new_partial_file(final)
     try:
         yield temporary
         publish(temporary, final)
@@ -130,8 +154,7 @@ def atomic_directory(directory: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary folder beside `directory` to assemble it in; when the block succeeds it replaces
     `directory` whole, and when it raises (a full disk) it is deleted, leaving `directory` as it was."""
     directory = Path(directory)
-    partial = partial_path(directory)
-    shutil.rmtree(partial, ignore_errors=True)  # a leftover of a process killed while assembling
+    partial = new_partial_folder(directory)
     try:
         yield partial
         if directory.exists():
@@ -169,9 +192,33 @@ def folder_lock(folder: str | os.PathLike[str], command: str) -> Iterator[None]:
             folder.rmdir()
 
 
+def check_folder_entries(folder: str | os.PathLike[str]) -> None:
+    """OutputPathError naming the first entry of `folder` (at any depth) that is a symbolic link or neither a
+    regular file nor a folder (a FIFO, a socket, a device). Commands write into their folders by name (the lock,
+    logs, results) and read back what is there: a link planted in a downloaded dataset or run would carry a
+    write to any file the user can write, and a FIFO would hang a read. The folder itself may be a link."""
+    for root, folders, files in os.walk(folder):  # os.walk never descends into a linked folder
+        for name in folders + files:
+            path = Path(root) / name
+            mode = os.lstat(path).st_mode
+            if stat.S_ISLNK(mode) or not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+                kind = "a symbolic link" if stat.S_ISLNK(mode) else "a FIFO" if stat.S_ISFIFO(mode) else \
+                    "a special file"
+                raise OutputPathError(f"{path} is {kind}; vintix writes and reads its output folders by name, so it "
+                                      f"refuses {folder} while it holds one: remove it (or copy what it points to in "
+                                      "its place)")
+
+
 @contextmanager
 def _locked(folder: Path, command: str) -> Iterator[None]:
-    with open(folder / LOCK_FILE, "a+") as handle:
+    check_folder_entries(folder)
+    try:  # O_NOFOLLOW: the lock itself never follows a link (one planted after the check, say)
+        descriptor = os.open(folder / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+    except OSError as error:
+        if error.errno != errno.ELOOP:
+            raise
+        raise OutputPathError(f"{folder / LOCK_FILE} is a symbolic link; remove it") from None
+    with os.fdopen(descriptor, "r+") as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -213,7 +260,7 @@ def check_replaceable(folder: str | os.PathLike[str], kind: str, overwrite: bool
             raise OutputPathError(f"{folder} is this command's own input; writing {OUTPUT_KINDS[kind][0]} there would "
                                   "destroy it: choose another output folder")
     check_output_kind(folder, kind)
-    if folder.is_dir() and any(folder.iterdir()) and not (overwrite or same_output):
+    if folder.is_dir() and any(p.name != LOCK_FILE for p in folder.iterdir()) and not (overwrite or same_output):
         held = next((what for what, holds in OUTPUT_KINDS.values() if holds(folder)), "files")
         raise OutputPathError(f"{folder} already holds {held}; writing {OUTPUT_KINDS[kind][0]} there would replace "
                               "it: choose another output folder, or pass --overwrite")

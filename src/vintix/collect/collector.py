@@ -37,7 +37,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vintix import cluster
-from vintix.atomic import check_output_kind, folder_lock
+from vintix.atomic import check_output_kind, folder_lock, remove_leftovers
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, epsilon_greedy, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
@@ -490,6 +490,9 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
                             **({"custom_task": custom[spec.name]} if custom else {}))
         jobs += [(plan, indices, root, demonstrator) for indices in batches(plan)
                  if not all(history_path(root, spec, i).exists() for i in indices)]
+    for plan, indices, *_ in jobs:  # what a killed collection left of the histories it was writing
+        for index in indices:
+            remove_leftovers(history_path(root, get_task(plan.task), index))
     if ray is not None:
         _collect_on_ray(jobs, root)
     elif workers > 1 and len(jobs) > 1:

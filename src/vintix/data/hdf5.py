@@ -45,7 +45,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from vintix.atomic import atomic_write_text, make_parent_dirs, os_error_in, partial_path, publish
+from vintix.atomic import atomic_write_text, make_parent_dirs, new_partial_file, os_error_in, publish
 from vintix.errors import DatasetError, VintixError
 from vintix.tasks.custom import register_specs
 from vintix.tasks.registry import TaskSpec
@@ -406,7 +406,7 @@ def _write_errors_as_os_errors(path: Path) -> Iterator[None]:
 class LearningHistoryWriter:
     """Writes one learning history in the official format, atomically.
 
-    Rows go to ``<name>.h5.partial`` and the file is renamed to ``<name>.h5`` only by a successful
+    Rows go to ``<name>.h5.<random>.partial`` and the file is renamed to ``<name>.h5`` only by a successful
     ``close()``, so an interrupted run never leaves a file that looks whole. If the ``with`` block
     raises, the partial file is deleted rather than kept: the writer cannot resume it (buffered rows
     are lost with the process), so it would only waste disk; a .partial left by a hard kill is
@@ -438,7 +438,6 @@ class LearningHistoryWriter:
             raise DatasetError(self.path, f"chunk_size must be in [1, {MAX_GROUP_ROWS}] (official group limit), got "
                                f"{chunk_size!r}")
         self.obs_dim, self.act_dim, self.chunk_size, self.discrete = obs_dim, act_dim, chunk_size, discrete
-        self._partial = partial_path(self.path)
         # Rows wait in fixed buffers of one group, so single-step appends cost a copy, not an HDF5 write.
         self._action_shape: tuple[int, ...] = () if discrete else (act_dim,)
         trailing = {"proprio_observation": (obs_dim,), "action": self._action_shape, "reward": (), "step_num": ()}
@@ -456,6 +455,7 @@ class LearningHistoryWriter:
         self._flushed = 0
         self._last_step = -1
         make_parent_dirs(self.path)
+        self._partial = new_partial_file(self.path)
         UNFINISHED_FILES.add(self._partial)
         # No chunk cache: each chunk reaches the disk inside the call that writes it, so a full disk is an
         # OSError there, not a write HDF5 retries when it frees the dataset (errors it can only print,

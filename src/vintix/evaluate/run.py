@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from vintix import cluster
 from vintix.agent import Agent
-from vintix.atomic import atomic_write_text, check_output_path, check_replaceable
+from vintix.atomic import atomic_write_text, check_output_path, check_replaceable, folder_lock
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
@@ -342,9 +342,16 @@ def evaluate(
     `checkpoint`: see `run_episodes`); write the results under `out` if given: a folder that is empty, or holds
     this checkpoint's earlier results, or any with `overwrite`. Returns the episode rows and notes (skipped
     tasks, missing references) for the user."""
-    if out is not None:
-        check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
-        check_replaceable(out, "results", overwrite, same_output=_results_of(out) == checkpoint)
+    if out is None:
+        return _evaluate(agent, config, None, checkpoint, label, progress, ray)
+    check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
+    check_replaceable(out, "results", overwrite, same_output=_results_of(out) == checkpoint)
+    with folder_lock(out, "vintix eval"):  # a second eval into `out` is refused, not mixed with this one
+        return _evaluate(agent, config, out, checkpoint, label, progress, ray)
+
+
+def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: str, label: str | None,
+              progress: bool, ray: str | None) -> tuple[list[dict[str, Any]], list[str]]:
     specs, notes = select_tasks(config.tasks, list(agent.model.groups), [t.task for t in agent.model.task_norms])
     refs, missing = references([s.name for s in specs])
     started = time.time()

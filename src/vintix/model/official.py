@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from vintix.atomic import atomic_path, atomic_write_text, check_replaceable
+from vintix.atomic import atomic_path, atomic_write_text, check_replaceable, folder_lock
 from vintix.model.checkpoint import (
     WEIGHTS_FILE,
     CheckpointError,
@@ -371,6 +371,11 @@ def import_official(snapshot: str | os.PathLike[str], out: str | os.PathLike[str
     empty or new, or `overwrite` given; never the snapshot itself."""
     snapshot = Path(snapshot)
     check_replaceable(out, "checkpoint", overwrite, inputs=[snapshot])
+    with folder_lock(out, "vintix import-official"):  # two imports into `out` would mix their files
+        return _import_official(snapshot, out)
+
+
+def _import_official(snapshot: Path, out: str | os.PathLike[str]) -> ImportResult:
     config = _read_json(snapshot / CONFIG)
     metadata = _read_json(snapshot / METADATA)
     model_config = config_from_official(config, str(snapshot / CONFIG))
@@ -404,9 +409,13 @@ def export_official(checkpoint: str | os.PathLike[str], out: str | os.PathLike[s
     """Write the model in `checkpoint` as a release snapshot in `out` (model.pth, config.json,
     metadata.json), loadable by the authors' code; `import_official` of it gives the same model back. `out`
     must be empty or new, or `overwrite` given; never the checkpoint itself."""
-    from vintix.model.checkpoint import load_pretrained
-
     check_replaceable(out, "release", overwrite, inputs=[checkpoint])
+    with folder_lock(out, "vintix export-official"):  # two exports into `out` would mix their files
+        return _export_official(checkpoint, out)
+
+
+def _export_official(checkpoint: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    from vintix.model.checkpoint import load_pretrained
 
     meta = read_metadata(checkpoint)
     model = load_pretrained(checkpoint)

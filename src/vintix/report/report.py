@@ -30,7 +30,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
 from matplotlib.ticker import MaxNLocator
 
-from vintix.atomic import atomic_path, atomic_write_text, check_output_kind
+from vintix.atomic import atomic_path, atomic_write_text, check_output_kind, folder_lock
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError
 from vintix.evaluate.config import PLATEAU_SHOTS
@@ -429,6 +429,12 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     if plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     check_output_kind(out, "report")
+    with folder_lock(out, "vintix report"):  # a second report into `out` is refused, not mixed with this one
+        return _write_report(folders, out, table, plateau_shots, model_card, gap_shots)
+
+
+def _write_report(folders: list[Path], out: Path, table: str, plateau_shots: int, model_card: bool,
+                  gap_shots: tuple[int, int] | None) -> WrittenReport:
     loaded = [load_results(Path(folder), table) for folder in folders]
     results = [r for r, _ in loaded]
     notes = [n for _, ns in loaded for n in ns]
