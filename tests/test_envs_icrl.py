@@ -158,3 +158,19 @@ def test_the_discrete_benchmarks_take_their_own_behaviours_only():
         load_demonstrator("reach-v3", behaviour="learner")
     with pytest.raises(VintixError, match="on a bandit use posterior-sampling"):
         load_demonstrator("BernoulliBandit-v0", behaviour="posterior-search")
+
+
+def test_a_searchers_proposals_can_be_its_targets_under_noise(tmp_path):
+    """`target: proposal`: the rows record what the search would have done before the noise (DART's targets), not
+    the goal-aware expert's action, and the files say so."""
+    agreement = {}
+    for target in ("expert", "proposal"):
+        collect(CollectionPlan("DarkRoom-v0", histories=4, steps=200, behaviour="posterior-search", target=target,
+                               schedule=NoiseSchedule(noise_free_fraction=0.0, knots=(0.2, 0.2, 0.0))),
+                tmp_path / target)
+        history = LearningHistory(next((tmp_path / target / "icrl" / "DarkRoom-v0").glob("*.h5")))
+        rows = history.read(0, 40, demonstrator_action=True)  # the first two episodes: mostly searching
+        agreement[target] = float((rows["action"] == rows["demonstrator_action"]).mean())
+        assert (target == "proposal") == (history.attrs.get("target") == "proposal")
+    # ε about 0.2: the executed action is the proposal but for the noise; the expert heads elsewhere while searching.
+    assert agreement["proposal"] >= 0.75 > agreement["expert"]

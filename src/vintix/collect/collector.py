@@ -94,6 +94,11 @@ class CollectionPlan:
     aim: str = "hand"
     """What a scripted reach expert puts on the goal: 'hand' (Meta-World's policy) or 'gripper-centre' (what
     reach's success measures; `vintix.demonstrators.base.AIMS`)."""
+    target: str = "expert"
+    """What a demonstrator that reads its rewards records as each row's demonstrator_action, the target of
+    `expert_distillation` training: 'expert', the goal-aware expert's action (a model matches it only by reading
+    its rewards), or 'proposal', its own action before the noise (with noise in the history, a model then learns
+    to act as the demonstrator would from the states noise put it in, and to recover from its own slips: DART)."""
     demonstrator: str | None = None
     """A demonstrator from outside the package: ``module:callable`` (called with the task name, returns a
     Demonstrator), ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only) or
@@ -115,6 +120,8 @@ class CollectionPlan:
         if self.behaviour not in BEHAVIOURS:
             raise CollectionError(
                 f"{self.task}: unknown behaviour {self.behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
+        if self.target not in TARGETS:
+            raise CollectionError(f"{self.task}: target {self.target!r} is unknown; choose one of {', '.join(TARGETS)}")
         if self.behaviour != "expert" and self.schedule.pilot_steps:
             raise CollectionError(f"{self.task}: pilot_steps fit knots to the expert's answer to noise; a "
                                   f"{self.behaviour} history has no such answer: drop pilot_steps")
@@ -135,9 +142,13 @@ class CollectionPlan:
                                  lapse_probability=self.lapse_probability, reward_tolerance=self.reward_tolerance)
 
 
+TARGETS = ("expert", "proposal")
+"""What a reward-reading demonstrator's rows may record as their target (`CollectionPlan.target`)."""
+
 DEMONSTRATOR_SETTING_DEFAULTS: dict[str, Any] = {
     field.name: field.default for field in fields(CollectionPlan)
-    if field.name in ("behaviour", "probe_margin", "lapse_probability", "reward_tolerance", "aim", "demonstrator")}
+    if field.name in ("behaviour", "probe_margin", "lapse_probability", "reward_tolerance", "aim", "target",
+                      "demonstrator")}
 """The `CollectionPlan` fields that say how the demonstrator plays, with their defaults: each is recorded in a
 history where it is not the default (in the fields' order, the order of a file's attributes), so a history that
 does not record one was made with its default."""
@@ -259,7 +270,8 @@ def collect_batch(plan: CollectionPlan, indices: Sequence[int], root: Path,
                     "history(ies)", "Collect shorter histories (steps)")
         epsilons = np.stack([schedule.epsilon(np.arange(plan.steps), plan.steps) for schedule in distinct], axis=1)
         _play(envs, demonstrator, epsilons, [s.noise for s in seeds], label, progress_position,
-              lambda block, start, rows: block.write(rows, writers), [s.demonstrator for s in seeds])
+              lambda block, start, rows: block.write(rows, writers), [s.demonstrator for s in seeds],
+              record_proposal=plan.target == "proposal")
         return [writer.close() for writer in writers]
     except BaseException:
         for writer in writers:
@@ -294,7 +306,7 @@ def _history_schedules(plan: CollectionPlan, envs: Sequence[gym.Env], demonstrat
 def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndarray,
           rngs: Sequence[np.random.Generator], label: str, progress_position: int,
           on_block: Callable[[_Block, int, int], None],
-          demonstrator_rngs: Sequence[np.random.Generator] = ()) -> None:
+          demonstrator_rngs: Sequence[np.random.Generator] = (), record_proposal: bool = False) -> None:
     """Play `envs` from a reset for ``len(epsilons)`` steps, env i at noise ``epsilons[t, i]`` (or all at
     ``epsilons[t, 0]`` when it has one column), handing each full block of rows to
     ``on_block(block, first step, rows)``.
@@ -304,7 +316,7 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
     its own RNG, drawn in the order a step-by-step loop would draw it, so the data do not depend on
     the block size. A demonstrator that learns within the history (`GoalInferringDemonstrator`) starts
     afresh with `demonstrator_rngs`, is told what every step earned, and its goal-aware expert's action
-    is the row's demonstrator action.
+    is the row's demonstrator action (with `record_proposal`, its own action before the noise instead).
     """
     learner = demonstrator if isinstance(demonstrator, GoalInferringDemonstrator) else None
     if learner is not None:
@@ -332,8 +344,8 @@ def _play(envs: Sequence[gym.Env], demonstrator: Demonstrator, epsilons: np.ndar
         # What the demonstrator proposes, inside the action bounds: the action it would execute at ε = 0.
         proposal = _within(call_plugin(f"{label}: the demonstrator's act", "Fix the demonstrator",
                                        demonstrator.act, observations, envs), low, high, discrete, label)
-        target = proposal if learner is None else _within(learner.expert_act(observations, envs), low, high, discrete,
-                                                          label)
+        target = proposal if learner is None or record_proposal else _within(
+            learner.expert_act(observations, envs), low, high, discrete, label)
         if discrete:
             actions = epsilon_greedy(proposal, epsilons[t], block.noise[k], int(high[0]) + 1)
         else:  # float32 before stepping, so the action stored is exactly the action executed.
