@@ -1458,6 +1458,57 @@ documented("outputs", "export-official into a folder another export holds: refus
     lambda: empty_dir("export-held")(), lambda out: ["export-official", model_checkpoint(), "--out", out]))
 
 
+# Values (issue 55, class 5): every CLI value is checked once, the same way wherever it arrives.
+cli_error("values", "eval --reward-input given twice", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--reward-input", "zero", "--reward-input",
+    "true"], "--reward-input is given 2 times")
+cli_error("values", "eval --variation of one name twice", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "HalfCheetah-v5", "--variation", "viscosity=0.1",
+    "--variation", "viscosity=0.2"], "'viscosity' is given twice")
+cli_error("values", "train --out given twice", lambda: [
+    "train", "--data", clean_data(), "--out", WORK / "a", "--out=" + str(WORK / "b")], "--out is given 2 times")
+cli_error("values", "eval --prompt-steps 0 (it used to mean 512)", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--prompt-from", clean_data(),
+    "--prompt-steps", "0"], "prompt_steps=0")
+cli_error("values", "report --plateau-shots beyond the run's shots", lambda: [
+    "report", eval_results(), "--plateau-shots", "50", "--out", WORK / "r-plateau"], "more shots than the runs have")
+
+
+def lr_in_the_docs_spelling() -> str | None:
+    from vintix.train import load_config
+
+    config = load_config("tiny", None, ["lr=3e-4", "min_lr_fraction=1e-1"])
+    return None if (config.lr, config.min_lr_fraction) == (3e-4, 0.1) else f"read as {config.lr}"
+
+
+documented("values", "--set lr=3e-4 (YAML 1.1 reads it as a string) is the float the docs mean",
+           lr_in_the_docs_spelling)
+
+
+def rates_table(kind: str, row: str) -> Callable[[], list[object]]:
+    def argv() -> list[object]:
+        path = WORK / f"rates-{kind}.csv"
+        path.write_text("task,envs_per_batch,raw_steps_per_s,collect_steps_per_s\n" + row + "\n")
+        return ["collect", "--task", "reach-v3", "--histories", "2", "--steps", "100", "--plan", "--rates", path]
+    return argv
+
+
+for kind, row in (("zero", "reach-v3,16,0,0"), ("nan", "reach-v3,16,nan,nan"), ("negative", "reach-v3,16,-5,-5"),
+                  ("no-envs", "reach-v3,0,100,100")):
+    cli_error("values", f"collect --plan with a rates table of {kind} rates", rates_table(kind, row),
+              "rates must be positive numbers")
+cli_error("values", "collect --plan refuses what collect refuses (posterior-search on a trained-expert task)",
+          lambda: ["collect", "--plan", "--recipe", recipe_file("plan-refused", {
+              "defaults": {"behaviour": "posterior-search"}, "tasks": {"Hopper-v5": {"histories": 1, "steps": 10}}})],
+          "needs a hidden-goal task")
+
+
+def recipe_file(name: str, content: dict[str, object]) -> Path:
+    path = WORK / f"{name}.yaml"
+    path.write_text(json.dumps(content))  # JSON is YAML
+    return path
+
+
 # Plug-ins (issue 47, class 6): code vintix is told to call that fails ends in one line naming it and the fix.
 def plugin_task(name: str, **fields: object) -> Callable[[], object]:
     def call() -> object:

@@ -29,10 +29,36 @@ if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that 
     from vintix.collect import CollectionPlan, HistorySummary
 
 
+def _refuse_repeated_options(group: Any, args: list[str]) -> None:
+    """A usage error where `args` give one of their command's single-valued options twice (click keeps the last
+    without a word: `--reward-input zero ... --reward-input true` would run with true rewards)."""
+    command, rest = group, list(args)
+    while hasattr(command, "commands"):  # a group: its options, then a command's name
+        index = next((i for i, arg in enumerate(rest) if arg in command.commands), None)
+        if index is None:
+            return
+        command, rest = command.commands[rest[index]], rest[index + 1:]
+    rest = rest[: rest.index("--")] if "--" in rest else rest
+    for param in command.params:
+        if getattr(param, "multiple", True) or not getattr(param, "opts", None):
+            continue  # an argument, or an option given once per value (--tasks-file, --set)
+        names = [*param.opts, *param.secondary_opts]
+        given = [arg if arg not in names or getattr(param, "is_flag", False) or i + 1 == len(rest)
+                 else f"{arg} {rest[i + 1]}" for i, arg in enumerate(rest)
+                 if arg in names or any(arg.startswith(f"{n}=") for n in names if n[:2] == "--")]
+        if len(given) > 1:
+            raise typer.BadParameter(f"{param.opts[0]} is given {len(given)} times ({', '.join(given)}); it takes one "
+                                     "value: give it once")
+
+
 class _Commands(TyperGroup):
     """A safety net under every command's own error handling: a VintixError raised anywhere in a
     command (or a file-system error, whose message names its path) ends as ``error: ...`` and exit
-    code 2, never as a traceback."""
+    code 2, never as a traceback. Before any command runs, an option it takes once given twice is refused."""
+
+    def parse_args(self, ctx: typer.Context, args: list[str]) -> list[str]:  # type: ignore[override]
+        _refuse_repeated_options(self, args)
+        return super().parse_args(ctx, args)
 
     # TyperGroup declares the context as the click Context typer vendors (typer._click, not exported);
     # typer hands its own subclass, typer.Context.
@@ -254,7 +280,7 @@ def collect(
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
     import time
 
-    from vintix.collect import CollectionPlan, NoiseSchedule
+    from vintix.collect import CollectionPlan, NoiseSchedule, check_demonstrators
     from vintix.collect import collect as collect_histories
     from vintix.collect.recipe import load_recipe
 
@@ -268,6 +294,7 @@ def collect(
         else:
             raise VintixError("give exactly one of --task or --recipe")
         if plan:
+            check_demonstrators(plans)  # what collect would refuse, --plan refuses too
             _print_collection_plan(plans, workers, rates)
             return
         if out is None:
@@ -1127,8 +1154,9 @@ def report_command(
     reference: Annotated[str, typer.Option(
         help="reference table: ours (our measured demonstrators and random policy; every task has it) or paper "
              "(the paper's table; what comparisons with its numbers need)")] = "ours",
-    plateau_shots: Annotated[int, typer.Option(
-        min=1, help="k of the best-k-shot plateau (converged score)")] = PLATEAU_SHOTS,
+    plateau_shots: Annotated[int | None, typer.Option(
+        min=1, help=f"k of the best-k-shot plateau (converged score); default {PLATEAU_SHOTS}, or all the shots of a "
+        "shorter run")] = None,
     model_card: Annotated[bool, typer.Option(
         help="put the released model's model-card scores beside each task and domain (results of a model "
              "imported with vintix import-official; the card uses its own reference returns)")] = False,

@@ -37,6 +37,8 @@ def _coerce(value: Any, hint: Any) -> Any:
     if hint is int:
         return value if isinstance(value, int) and not isinstance(value, bool) else _INVALID
     if hint is float:  # NaN or inf is no setting's meaningful value
+        if isinstance(value, str):  # YAML 1.1 reads 3e-4 (no dot) as a string; the docs write it so
+            value = _number(value)
         number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
         return float(value) if number else _INVALID
     if hint is str:
@@ -56,6 +58,14 @@ def _coerce(value: Any, hint: Any) -> Any:
     if isinstance(hint, type) and origin is None:  # a class of ours, e.g. CollectionPlan.schedule: NoiseSchedule
         return value if isinstance(value, hint) else _INVALID
     return value
+
+
+def _number(text: str) -> float | str:
+    """`text` as the number it spells (``3e-4``), or `text` itself."""
+    try:
+        return float(text)
+    except ValueError:
+        return text
 
 
 def type_name(hint: Any) -> str:

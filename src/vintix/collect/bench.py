@@ -83,13 +83,21 @@ def read_rates(path: Path | None = None) -> dict[str, CollectBenchmark]:
     path = path or rates_path()
     try:
         with open(path, newline="") as file:
-            return {row["task"]: CollectBenchmark(
-                        row["task"], int(row["envs_per_batch"]), float(row["raw_steps_per_s"]),
-                        float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
-                    for row in csv.DictReader(file)}
+            rates = {row["task"]: CollectBenchmark(
+                         row["task"], int(row["envs_per_batch"]), float(row["raw_steps_per_s"]),
+                         float(row["collect_steps_per_s"]) if row["collect_steps_per_s"] else None)
+                     for row in csv.DictReader(file)}
     except (OSError, UnicodeDecodeError, KeyError, TypeError, ValueError) as error:
         raise VintixError(f"{path}: not a readable rates table ({type(error).__name__}: {error}); it needs the columns "
                           f"{RATES_FIELDS[:4]}: write one with `vintix bench collect TASKS --out {path}`") from error
+    # A rate of 0, NaN or below would turn an estimate into a division by zero, NaN hours or negative ones.
+    bad = [f"{r.task}: {value}" for r in rates.values()
+           for value in (r.raw_steps_per_s, r.collect_steps_per_s) if value is not None and not value > 0]
+    if bad or any(r.envs_per_batch < 1 for r in rates.values()):
+        raise VintixError(f"{path}: rates must be positive numbers of steps per second and envs_per_batch >= 1, got "
+                          f"{'; '.join(bad) or 'envs_per_batch < 1'}; measure them again with `vintix bench collect "
+                          f"TASKS --out {path}`")
+    return rates
 
 
 def replay_seconds(task: str, history: Path) -> float:

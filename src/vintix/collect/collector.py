@@ -464,13 +464,20 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
     if ray is not None:
         cluster.connect(ray)
     if demonstrator is None:
-        for plan in plans:
-            plan.load_demonstrator()
+        check_demonstrators(plans)
     check_output_kind(root, "dataset")
     check_disk_space(plans, root)
     # `kill` ends a collection as Ctrl-C does: its unfinished files removed, its workers ended.
     with folder_lock(root, "vintix collect"), sigterm_as_ctrl_c():
         return _collect(plans, root, workers, demonstrator, ray)
+
+
+def check_demonstrators(plans: Sequence[CollectionPlan]) -> None:
+    """Load each plan's demonstrator once, so that a setting it refuses (a behaviour the task has no demonstrator
+    for, a probe margin without a probe, a demonstrator that cannot be loaded) fails now: `collect` and
+    `collect --plan` check the same."""
+    for plan in plans:
+        plan.load_demonstrator()
 
 
 def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:

@@ -56,8 +56,9 @@ class EvalConfig:
     def __post_init__(self) -> None:
         # Checked before any env runs: shots=0 used to crash only after the whole evaluation.
         check_field_types(self, EvalConfigError)
-        bad = [f"{k}={v}" for k, v in (("shots", self.shots), ("seeds", self.seeds), ("batch_envs", self.batch_envs),
-                                       ("prompt_steps", self.prompt_steps or 1)) if v < 1]
+        counts = {"shots": self.shots, "seeds": self.seeds, "batch_envs": self.batch_envs,
+                  "prompt_steps": 1 if self.prompt_steps is None else self.prompt_steps}  # None: half the context
+        bad = [f"{k}={v}" for k, v in counts.items() if v < 1]
         bad += [f"first_seed={self.first_seed}"] if self.first_seed < 0 else []  # env seeds are unsigned
         if bad:
             raise EvalConfigError(f"{', '.join(bad)}: shots, seeds, batch_envs and prompt_steps must be >= 1, "

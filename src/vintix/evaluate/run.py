@@ -66,14 +66,18 @@ class Episode:
 
 def parse_variation(items: Sequence[str]) -> dict[str, float]:
     """``["viscosity=0.05", "gravity_scale=1.1"]`` -> ``{"viscosity": 0.05, "gravity_scale": 1.1}``."""
-    variation = {}
+    variation: dict[str, float] = {}
     for item in items:
         name, _, value = item.partition("=")
         try:
-            variation[name.strip()] = float(value)
+            number = float(value)
         except ValueError:
             raise VintixError(
                 f"variation {item!r} is not NAME=NUMBER, e.g. viscosity=0.05 or gravity_scale=1.1") from None
+        if name.strip() in variation:  # the last would win without a word
+            raise VintixError(f"variation {name.strip()!r} is given twice ({variation[name.strip()]:g} and "
+                              f"{number:g}); give each once")
+        variation[name.strip()] = number
     return variation
 
 
@@ -222,7 +226,7 @@ def run_episodes(
     `config.batch_envs`, one after another through `agent`, or, given a Ray address `ray`, one Ray task
     per batch, each loading the model from `checkpoint` itself; rows come back in the same order."""
     runs = [(spec, config.first_seed + i) for spec in specs for i in range(config.seeds)]
-    prompt_steps = config.prompt_steps or agent.model.config.context_len // 2
+    prompt_steps = agent.model.config.context_len // 2 if config.prompt_steps is None else config.prompt_steps
     batches = [runs[start : start + config.batch_envs] for start in range(0, len(runs), config.batch_envs)]
     if ray is None:
         return [row for batch in batches for row in run_batch(agent, config, batch, prompt_steps, progress)]

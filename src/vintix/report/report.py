@@ -420,20 +420,21 @@ class WrittenReport(NamedTuple):
     """one line per reward ablation and domain: its reward-use gap with CI, and the shots it averages"""
 
 
-def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_shots: int = PLATEAU_SHOTS,
+def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_shots: int | None = None,
                  model_card: bool = False, gap_shots: tuple[int, int] | None = None) -> WrittenReport:
     """`report.md` and its figures under `out`, from one or more `vintix eval` result folders.
     `model_card`: put the released model's model-card scores beside each task and domain (for results of
     the imported official model). `gap_shots`: the reward-use gap over these shots (first, last; 1-based,
-    inclusive) instead of the true run's best `plateau_shots`."""
-    if plateau_shots < 1:
+    inclusive) instead of the true run's best `plateau_shots`. `plateau_shots` None: `PLATEAU_SHOTS`, or all the shots
+    of a shorter run; a number given must fit the longest run."""
+    if plateau_shots is not None and plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     check_output_kind(out, "report")
     with folder_lock(out, "vintix report"):  # a second report into `out` is refused, not mixed with this one
         return _write_report(folders, out, table, plateau_shots, model_card, gap_shots)
 
 
-def _write_report(folders: list[Path], out: Path, table: str, plateau_shots: int, model_card: bool,
+def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shots: int | None, model_card: bool,
                   gap_shots: tuple[int, int] | None) -> WrittenReport:
     loaded = [load_results(Path(folder), table) for folder in folders]
     results = [r for r, _ in loaded]
@@ -441,6 +442,11 @@ def _write_report(folders: list[Path], out: Path, table: str, plateau_shots: int
     if not any(r.scores for r in results):
         raise VintixError(f"no task of {', '.join(map(str, folders))} has a '{table}' reference score to normalize "
                           f"with: {' '.join(notes)}")
+    most = max(scores.shape[1] for r in results for scores in r.scores.values())
+    if given_plateau_shots is not None and given_plateau_shots > most:
+        raise VintixError(f"--plateau-shots {given_plateau_shots} is more shots than the runs have (at most {most}); "
+                          f"choose at most {most} (left out, it is {PLATEAU_SHOTS}, or all the shots of a shorter run)")
+    plateau_shots = given_plateau_shots or PLATEAU_SHOTS
     labels = [r.label for r in results]
     if len(set(labels)) < len(labels):  # the same checkpoint evaluated twice: tell them apart
         for r in results:
