@@ -1509,6 +1509,47 @@ def recipe_file(name: str, content: dict[str, object]) -> Path:
     return path
 
 
+# Names (issue 55, class 3): a bare name means one thing; a local path shadowing a shipped name is refused.
+def in_shadowing_folder(*argv: object) -> Callable[[], tuple[int, str]]:
+    """Run `argv` from a folder holding ./vintix-cpu (a folder), ./tiny (a file) and ./darkroom (a file)."""
+    def run() -> tuple[int, str]:
+        folder = WORK / "shadowing"
+        (folder / "vintix-cpu").mkdir(parents=True, exist_ok=True)
+        for name in ("tiny", "darkroom"):
+            (folder / name).write_text("tasks: {}\n")
+        here = Path.cwd()
+        os.chdir(folder)
+        try:
+            return invoke(*argv)
+        finally:
+            os.chdir(here)
+    return run
+
+
+def refused_as_shadowed(*argv: object) -> Callable[[], str | None]:
+    def check() -> str | None:
+        code, output = in_shadowing_folder(*argv)()
+        return None if code == 2 and "write ./" in output and "is both the shipped" in output else \
+            f"exit {code}: {output[-300:]}"
+    return check
+
+
+documented("names", "eval --checkpoint vintix-cpu beside a folder ./vintix-cpu: refused, not the folder",
+           refused_as_shadowed("eval", "--checkpoint", "vintix-cpu", "--tasks", "reach-v3", "--shots", "1"))
+documented("names", "collect --recipe tiny beside a file ./tiny: refused, not the file",
+           refused_as_shadowed("collect", "--recipe", "tiny", "--plan"))
+documented("names", "train --config darkroom beside a file ./darkroom: refused, not the file",
+           refused_as_shadowed("train", "--config", "darkroom", "--data", "nowhere"))
+
+
+def dot_slash_means_the_local_file() -> str | None:
+    code, output = in_shadowing_folder("collect", "--recipe", "./tiny", "--plan")()
+    return None if code == 2 and "a recipe needs a non-empty 'tasks:'" in output else f"exit {code}: {output[-200:]}"
+
+
+documented("names", "collect --recipe ./tiny reads the local file", dot_slash_means_the_local_file)
+
+
 # Plug-ins (issue 47, class 6): code vintix is told to call that fails ends in one line naming it and the fix.
 def plugin_task(name: str, **fields: object) -> Callable[[], object]:
     def call() -> object:

@@ -876,7 +876,7 @@ def import_official_command(
 
 @app.command("export-official")
 def export_official_command(
-    checkpoint: Annotated[Path, typer.Argument(help="our checkpoint directory, a training run, or a shipped model")],
+    checkpoint: Annotated[str, typer.Argument(help="our checkpoint directory, a training run, or a shipped model")],
     out: Annotated[Path, typer.Option(help="folder for model.pth, config.json and metadata.json")] = Path(
         "vintix-release"),
     overwrite: Annotated[bool, typer.Option(help=_OVERWRITE_HELP)] = False,
@@ -1026,7 +1026,7 @@ def bench_infer(
 
 @app.command("eval")
 def eval_command(
-    checkpoint: Annotated[Path, typer.Option(help="a checkpoint directory (config.json + model.safetensors), a "
+    checkpoint: Annotated[str, typer.Option(help="a checkpoint directory (config.json + model.safetensors), a "
                                              "training run (its best checkpoint, else its newest), a shipped model "
                                              "(cpu-suite, icrl-reach, point-goal) or a release snapshot")],
     tasks: Annotated[list[str], typer.Option(

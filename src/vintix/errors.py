@@ -61,3 +61,19 @@ def call_plugin(what: str, fix: str, function: Callable[..., T], *args: Any, **k
         raise
     except Exception as error:  # noqa: BLE001 - any exception of foreign code is named, not swallowed
         raise PluginError(f"{what} raised {type(error).__name__}: {error}. {fix}") from error
+
+
+class ShadowedNameError(VintixError, ValueError):
+    """A bare name that means both something the package ships and a file or folder here."""
+
+
+def local_or_shipped(given: str | os.PathLike[str], shipped: bool, what: str) -> bool:
+    """Whether `given` means the local path (True) or the package's shipped `what` of that name (False), one way
+    only: a bare name (no folder part) that is both is a ShadowedNameError, never silently the local one (which
+    runs would then record as the shipped one). ``./name`` means the local path, always."""
+    text = os.fspath(given)
+    exists = os.path.lexists(text)
+    if exists and shipped and os.sep not in text and "/" not in text:
+        raise ShadowedNameError(f"{text!r} is both the shipped {what} of that name and {os.path.join('.', text)} here; "
+                                f"write ./{text} for yours, or rename or move it to use the shipped one")
+    return exists or not shipped

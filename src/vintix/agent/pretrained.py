@@ -10,6 +10,7 @@ import os
 from importlib import resources
 from pathlib import Path
 
+from vintix.errors import local_or_shipped
 from vintix.model.checkpoint import CheckpointError, is_checkpoint
 from vintix.model.official import CONFIG, METADATA, WEIGHTS, file_sha256, import_official, is_official_snapshot
 from vintix.train.checkpoint import model_directory
@@ -41,16 +42,16 @@ def imported_snapshot(snapshot: Path) -> Path:
 
 def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
     """The model folder meant by a path (a checkpoint, a training run: `model_directory`, or an official
-    release snapshot: `imported_snapshot`) or by the name of a shipped model; a path that exists always
-    wins over a shipped name."""
+    release snapshot: `imported_snapshot`) or by the name of a shipped model; a bare name that is both is refused
+    (`vintix.errors.local_or_shipped`: ``./name`` is the path)."""
     path = Path(name_or_path)
+    shipped = _shipped_root() / path.name
+    if not local_or_shipped(name_or_path, path.name == str(name_or_path) and is_checkpoint(shipped), "model"):
+        return shipped
     if is_official_snapshot(path):
         return imported_snapshot(path)
     if path.exists():
         return model_directory(path)
-    shipped = _shipped_root() / str(name_or_path)
-    if is_checkpoint(shipped):
-        return shipped
     raise CheckpointError(f"{name_or_path}: no such checkpoint or run folder, and no shipped model of that name "
                           f"(shipped: {', '.join(shipped_models()) or 'none'})")
 

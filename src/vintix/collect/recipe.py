@@ -26,6 +26,7 @@ import yaml
 
 from vintix.collect.collector import CollectionError, CollectionPlan
 from vintix.collect.noise import NoiseSchedule
+from vintix.errors import local_or_shipped
 from vintix.tasks import resolve_tasks
 
 SCHEDULE_KEYS = {f.name for f in dataclasses.fields(NoiseSchedule)}
@@ -39,13 +40,14 @@ def shipped_recipes() -> list[str]:
 
 
 def recipe_path(name_or_path: str | Path) -> Path:
-    """A recipe file, or the name of one the package ships ('tiny', 'metaworld-cpu', ...)."""
+    """A recipe file, or the name of one the package ships ('tiny', 'metaworld-cpu', ...); a bare name that is both
+    is refused (`vintix.errors.local_or_shipped`)."""
     path = Path(name_or_path)
+    shipped = resources.files("vintix.collect").joinpath("recipes").joinpath(f"{name_or_path}.yaml")
+    if not local_or_shipped(name_or_path, shipped.is_file(), "recipe"):
+        return Path(str(shipped))
     if path.is_file():
         return path
-    shipped = resources.files("vintix.collect").joinpath("recipes").joinpath(f"{name_or_path}.yaml")
-    if shipped.is_file():
-        return Path(str(shipped))
     raise FileNotFoundError(
         f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {shipped_recipes()}")
 

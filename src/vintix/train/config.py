@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from vintix.errors import VintixError
+from vintix.errors import VintixError, local_or_shipped
 from vintix.fields import MAX_THREADS, check_field_types
 from vintix.model.model import PRESETS, ModelConfig, preset
 
@@ -242,7 +242,7 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
     else:
         path = Path(config)
         shipped = Path(str(resources.files("vintix.train").joinpath("configs").joinpath(f"{config}.yaml")))
-        if not path.is_file() and shipped.is_file():
+        if not local_or_shipped(config, shipped.is_file(), "training config"):
             path = shipped
         elif not path.is_file():
             raise ConfigError(f"--config {config!r} is neither a model preset ({', '.join(PRESETS)}), a shipped config "
