@@ -8,6 +8,7 @@ import pytest
 from inference_model import one_torch_thread  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent, resolve_checkpoint, shipped_models
 from vintix.collect.recipe import load_recipe
+from vintix.errors import ShadowedNameError
 from vintix.model.checkpoint import WEIGHTS_FILE, CheckpointError, read_metadata
 from vintix.tasks import get_task, make_env
 
@@ -25,11 +26,13 @@ def test_a_shipped_model_is_small_trained_on_its_recipe_and_records_how_it_was_m
     assert "vintix train" in (folder / "TRAINING.md").read_text()
 
 
-def test_a_path_wins_over_a_shipped_name_and_unknown_names_list_the_shipped_ones(tmp_path, monkeypatch):
+def test_a_name_means_one_thing_and_unknown_names_list_the_shipped_ones(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "cpu-suite").mkdir()
+    with pytest.raises(ShadowedNameError, match="write ./cpu-suite for yours"):
+        resolve_checkpoint("cpu-suite")  # the shipped model, or the empty folder here? Neither, silently
     with pytest.raises(CheckpointError, match="neither a model checkpoint"):
-        resolve_checkpoint("cpu-suite")  # the empty folder here, not the shipped model
+        resolve_checkpoint("./cpu-suite")  # the empty folder here
     with pytest.raises(CheckpointError, match="shipped: .*cpu-suite"):
         resolve_checkpoint("no-such-model")
 
