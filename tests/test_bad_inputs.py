@@ -819,6 +819,36 @@ def corrupted_stats_cache_is_recomputed() -> str | None:
 documented("train", "a damaged statistics cache entry is recomputed", corrupted_stats_cache_is_recomputed)
 
 
+def stats_follow_an_in_place_change() -> str | None:
+    """Issue 55, class 4: a history rewritten in place, same size, its mtime set back, gets new statistics."""
+    from vintix.data import find_tasks
+    from vintix.train.data import cached_obs_stats
+
+    data = WORK / "data-in-place"
+    if not data.exists():
+        shutil.copytree(clean_data(), data)
+    task = find_tasks(data)[0]
+    cache = WORK / "stats-cache-in-place"
+
+    def stats() -> list[float]:
+        histories = [__import__("vintix.data").data.LearningHistory(p) for p in task.history_paths]
+        return cached_obs_stats(task, histories, cache)[1]
+
+    before = stats()
+    path = task.history_paths[0]
+    times = (path.stat().st_atime_ns, path.stat().st_mtime_ns)
+    with h5py.File(path, "r+") as file:  # the same bytes' worth of rows, other values
+        group = file[sorted(file.keys(), key=lambda k: int(k.split("-")[0]) if "-" in k else -1)[-1]]
+        observations = group["proprio_observation"]
+        observations[...] = observations[...] * 3.0 + 1.0
+    os.utime(path, ns=times)
+    return None if stats() != before else "the cached statistics of the old rows were reused"
+
+
+documented("train", "statistics follow a history changed in place (same size, mtime set back)",
+           stats_follow_an_in_place_change)
+
+
 def resume_falls_back(run: str) -> Callable[[], str | None]:
     def check() -> str | None:
         out = RUNS[run]()

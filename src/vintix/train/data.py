@@ -60,6 +60,14 @@ def task_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
     return [[p.name, p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(paths)]
 
 
+def content_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
+    """`task_fingerprint` plus each file's inode and change time (ctime), which every write to it sets and no
+    tool can set back: an in-place change that keeps the size and restores the mtime still alters it (what a
+    statistics cache must not miss), while reading all the bytes of a large dataset to hash them is not paid."""
+    return [[*entry, p.stat().st_ino, p.stat().st_ctime_ns] for entry, p in zip(task_fingerprint(paths), sorted(paths),
+                                                                                strict=True)]
+
+
 def streaming_row_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarray, np.ndarray, int]:
     """Per-channel mean and std over every row, one HDF5 step group (<= 10k rows) at a time; the
     reward is the last channel, after the observation's.
@@ -107,7 +115,7 @@ def _finite(values: object) -> bool:
 def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache_dir: Path
                      ) -> tuple[list[float], list[float], float]:
     """`streaming_row_stats` of a task (observation mean and std, reward std), read from / written to a
-    per-task cache file keyed by fingerprint.
+    per-task cache file keyed by `content_fingerprint`.
 
     A cache miss first validates the task's histories (`check_histories`); an entry is written only
     for histories that passed, and one without the ``validated`` mark (older vintix) or with
@@ -115,7 +123,7 @@ def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache
     """
     key = hashlib.sha1(str(task.task_dir.resolve()).encode()).hexdigest()[:16]
     path = cache_dir / f"{task.task_name}-{key}.json"
-    fingerprint = task_fingerprint(task.history_paths)
+    fingerprint = content_fingerprint(task.history_paths)
     if path.is_file():
         try:
             cached = json.loads(path.read_text())
