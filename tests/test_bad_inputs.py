@@ -1659,6 +1659,12 @@ def minari_root() -> None:
 cli_error("data", "export-minari with a dataset id that climbs out of Minari's root", lambda: [
     "data", "export-minari", clean_data(), "--dataset-id", "../../escaped/x-v0"], "expected [namespace/]name-vN",
     setup=minari_root, after=lambda: "a folder was made outside Minari's root" if (WORK / "escaped").exists() else None)
+# Issue 55, class 8: ids Minari itself refuses are refused before any folder is made.
+for bad_id in ("vintix/reach.v3-v0", "vintix//reach-v0", "vintix/reach v3-v0", "_/reach-v0"):
+    cli_error("data", f"export-minari with the id {bad_id!r}, which Minari refuses", lambda bad_id=bad_id: [
+        "data", "export-minari", clean_data(), "--dataset-id", bad_id], "expected [namespace/]name-vN",
+        setup=minari_root, after=lambda: "a folder was made under Minari's root" if any(
+            (WORK / "minari" / "datasets").glob("*/*")) else None)
 
 
 @once

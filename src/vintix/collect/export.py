@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import warnings
 from pathlib import Path
 from typing import Any
@@ -26,6 +27,9 @@ import gymnasium as gym
 import minari
 import numpy as np
 from minari.data_collector import EpisodeBuffer
+from minari.dataset.minari_dataset import parse_dataset_id
+from minari.namespace import validate_namespace
+from minari.storage.datasets_root_dir import get_dataset_path
 
 from vintix.collect.noise import NoiseSchedule
 from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
@@ -38,10 +42,16 @@ def check_dataset_id(dataset_id: str) -> None:
     """VintixError unless `dataset_id` reads as Minari's ``[namespace/]name-vN``, each part a plain name: a part
     such as ``..`` would make Minari create folders outside its datasets root before it refused the id."""
     parts = dataset_id.split("/")
-    if any(not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", part) or set(part) == {"."} for part in parts) \
-            or not re.search(r"-v\d+$", parts[-1]):
+    plain = all(re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]*", part) for part in parts)
+    try:  # Minari's own parse, so that no id it would refuse after making a folder gets that far
+        namespace = parse_dataset_id(dataset_id)[0]
+        if namespace is not None:
+            validate_namespace(namespace)
+    except (ValueError, TypeError):
+        plain = False
+    if not plain or not re.search(r"-v\d+$", parts[-1]):
         raise VintixError(f"Minari dataset id {dataset_id!r}: expected [namespace/]name-vN, each part letters, digits, "
-                          "'_', '-' or '.', e.g. vintix/reach-v3-v0")
+                          "'_' or '-', e.g. vintix/reach-v3-v0")
 
 
 def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | None = None,
@@ -78,14 +88,18 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
         warnings.filterwarnings("ignore", message=".*maximum and minimum values are equal.*")
         warnings.filterwarnings("ignore", message=".*is set to None.*", module="minari")
         warnings.filterwarnings("ignore", message="env_spec is None.*", module="minari")
-        dataset = minari.create_dataset_from_buffers(
-            dataset_id, episodes, env=env_spec, eval_env=env_spec, author=author, author_email=author_email,
-            code_permalink=code_permalink, observation_space=observation_space, action_space=action_space,
-            algorithm_name=f"vintix {'ε-greedy' if data.discrete else 'continuous'} noise distillation",
-            description=description or f"Learning histories of {data.task_name} from {Path(root).name}: a "
-                                       f"demonstrator's actions {NOISE[data.discrete]} annealed from 1 to 0.",
-        )
-    dataset.storage.update_episode_metadata(metadata)
+        try:
+            dataset = minari.create_dataset_from_buffers(
+                dataset_id, episodes, env=env_spec, eval_env=env_spec, author=author, author_email=author_email,
+                code_permalink=code_permalink, observation_space=observation_space, action_space=action_space,
+                algorithm_name=f"vintix {'ε-greedy' if data.discrete else 'continuous'} noise distillation",
+                description=description or f"Learning histories of {data.task_name} from {Path(root).name}: a "
+                                           f"demonstrator's actions {NOISE[data.discrete]} annealed from 1 to 0.",
+            )
+            dataset.storage.update_episode_metadata(metadata)
+        except BaseException:  # a half-written dataset (listed or not) would poison every later export of this id
+            shutil.rmtree(get_dataset_path(dataset_id), ignore_errors=True)
+            raise
     return dataset
 
 
