@@ -1200,6 +1200,24 @@ def garbage_results(kind: str) -> Callable[[], list[object]]:
 
 cli_error("report", "episodes.csv of another tool", garbage_results("garbage-csv"), "episodes.csv")
 cli_error("report", "run.json not JSON", garbage_results("garbage-run-json"), "run.json")
+# Issue 55, class 6: JSON nested 10^5 deep (300 KB) is malformed JSON to every reader, not a RecursionError.
+DEEP_JSON = "[" * 100_000 + "]" * 100_000
+
+
+def deep_run_json() -> list[object]:
+    folder = WORK / "results-deep-json"
+    shutil.copytree(eval_results(), folder, dirs_exist_ok=True)
+    (folder / "run.json").write_text(DEEP_JSON)
+    return ["report", folder, "--out", WORK / "r-deep-json"]
+
+
+cli_error("report", "run.json nested 10^5 deep", deep_run_json, "run.json")
+cli_error("eval", "a checkpoint whose config.json is nested 10^5 deep", lambda: [
+    "eval", "--checkpoint", damaged_checkpoint("deep-json", lambda c: (c / "config.json").write_text(DEEP_JSON))(),
+    "--tasks", "reach-v3"], "config.json")
+cli_error("data", "a task JSON nested 10^5 deep", lambda: [
+    "data", "validate", damaged_data("deep-json", lambda f: (f / "reach-v3.json").write_text(DEEP_JSON))()],
+    "reach-v3.json")
 cli_error("report", "a return that is text", garbage_results("text-return"), "episodes.csv")
 cli_error("report", "episodes.csv without rows", garbage_results("no-rows"), "no episodes")
 

@@ -6,7 +6,6 @@ import csv
 import errno
 import importlib.util
 import io
-import json
 import os
 import sys
 import warnings
@@ -21,7 +20,7 @@ from tqdm import tqdm
 from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
-from vintix.errors import VintixError
+from vintix.errors import VintixError, json_loads
 from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
@@ -398,7 +397,7 @@ def demonstrator_train(
         path = train_demonstrator(task, timesteps, seed, target, callback=SayWhereItStarts(), report=console.print)
     except VintixError as error:
         raise _fail(error) from None
-    meta = json.loads(path.with_suffix(".json").read_text())
+    meta = json_loads(path.with_suffix(".json").read_text())
     if stopped := meta.get("stopped_at_score"):
         console.print(f"stopped at step {stopped['step']:,} of {stopped['budget']:,}: normalized score "
                       f"{stopped['normalized_score']} ≥ {stopped['target']}")
@@ -578,7 +577,7 @@ def demonstrator_list() -> None:
         if spec.domain != "metaworld":
             _, meta_path = weights_paths(spec.group)
             if meta_path.is_file():
-                meta = json.loads(meta_path.read_text())
+                meta = json_loads(meta_path.read_text())
                 kind = f"{meta['algorithm']} (shipped)"
                 training = f"{meta['timesteps']:,} steps, {meta['train_seconds'] / 60:.0f} min"
             else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -77,3 +78,12 @@ def local_or_shipped(given: str | os.PathLike[str], shipped: bool, what: str) ->
         raise ShadowedNameError(f"{text!r} is both the shipped {what} of that name and {os.path.join('.', text)} here; "
                                 f"write ./{text} for yours, or rename or move it to use the shipped one")
     return exists or not shipped
+
+
+def json_loads(text: str) -> Any:
+    """`json.loads`, where a file nested too deeply for Python's parser (a RecursionError, from a hostile file of
+    a few hundred kilobytes) is a `json.JSONDecodeError` like any other malformed JSON, for its reader to name."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise json.JSONDecodeError("nested too deeply to read", text[:100], 0) from None

@@ -46,7 +46,7 @@ import h5py
 import numpy as np
 
 from vintix.atomic import atomic_write_text, make_parent_dirs, new_partial_file, os_error_in, publish
-from vintix.errors import DatasetError, VintixError
+from vintix.errors import DatasetError, VintixError, json_loads
 from vintix.tasks.custom import register_specs
 from vintix.tasks.registry import TaskSpec
 
@@ -852,7 +852,7 @@ def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
             path, f"missing task metadata (keys {list(_REQUIRED_KEYS)}); write it with write_task_metadata()"
         )
     try:
-        meta = json.loads(path.read_text())
+        meta = json_loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise DatasetError(path, f"not valid JSON ({err}); {fix}") from err
     if not isinstance(meta, dict) or any(key not in meta for key in _REQUIRED_KEYS):

@@ -31,7 +31,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.sac.policies import SACPolicy
 
 from vintix.atomic import atomic_save_tensors, atomic_write_text
-from vintix.errors import VintixError
+from vintix.errors import VintixError, json_loads
 from vintix.tasks import TaskSpec, action_box, make_env
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"PPO": PPO, "SAC": SAC}
@@ -81,7 +81,7 @@ def _read_weights(tensors_path: Path, meta_path: Path) -> tuple[dict[str, Any], 
     in the metadata are checked against the tensors before SB3 builds anything: a width that no tensor
     has cannot load, and an absurd one would exhaust memory building the policy."""
     try:
-        metadata = json.loads(meta_path.read_text())
+        metadata = json_loads(meta_path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise VintixError(f"{meta_path}: not valid JSON ({error}); {_RESAVE}") from None
     if not isinstance(metadata, dict) or not isinstance(metadata.get("policy_kwargs"), dict):

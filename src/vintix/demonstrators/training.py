@@ -60,7 +60,7 @@ from vintix.demonstrators.trained import (
     first_observations,
     save_trained_policy,
 )
-from vintix.errors import VintixError
+from vintix.errors import VintixError, json_loads
 from vintix.interrupt import Interrupted, sigterm_as_ctrl_c
 from vintix.tasks import get_task, list_tasks, make_env
 from vintix.tasks.scores import reference
@@ -257,7 +257,7 @@ def save_training_state(model: BaseAlgorithm, vec_normalize: VecNormalize | None
 def _newest_state(directory: Path) -> tuple[Path, dict[str, Any]] | None:
     """The newest complete state in `directory` and its info, if any."""
     complete = sorted(p.parent for p in directory.glob(f"{STATE_PREFIX}*/{STATE_FILE}"))
-    return (complete[-1], json.loads((complete[-1] / STATE_FILE).read_text())) if complete else None
+    return (complete[-1], json_loads((complete[-1] / STATE_FILE).read_text())) if complete else None
 
 
 def keep_best_check(model: BaseAlgorithm, vec_normalize: VecNormalize | None, group: str, observation_dims: int,
@@ -279,7 +279,7 @@ def best_check(directory: Path) -> tuple[Path, dict[str, Any]] | None:
     if not complete:
         return None
     [meta] = complete[-1].glob("*.json")
-    return complete[-1], json.loads(meta.read_text())["score_check"]
+    return complete[-1], json_loads(meta.read_text())["score_check"]
 
 
 def latest_training_state(directory: Path, plan: dict[str, Any]) -> tuple[Path, dict[str, Any]] | None:

@@ -33,7 +33,7 @@ from vintix import cluster
 from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_path, check_replaceable, folder_lock
 from vintix.data.hdf5 import LearningHistory, find_tasks
-from vintix.errors import UnknownTaskError, VintixError
+from vintix.errors import UnknownTaskError, VintixError, json_loads
 from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
 from vintix.evaluate.summary import best_k_plateau
 from vintix.model.model import Vintix
@@ -325,7 +325,7 @@ def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) ->
 def _results_of(folder: Path) -> str | None:
     """The checkpoint whose results `folder` holds (its run.json), or None."""
     try:
-        return str(json.loads((folder / RUN_FILE).read_text())["checkpoint"])
+        return str(json_loads((folder / RUN_FILE).read_text())["checkpoint"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
 

@@ -25,7 +25,7 @@ import torch
 from safetensors.torch import load_file
 
 from vintix.atomic import atomic_save_tensors, atomic_write_text
-from vintix.errors import DeviceError, VintixError
+from vintix.errors import DeviceError, VintixError, json_loads
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters, estimated_parameters
 from vintix.tasks.custom import custom_specs, register_specs
@@ -148,7 +148,7 @@ def read_metadata(directory: str | os.PathLike[str]) -> dict[str, Any]:
         raise CheckpointError(f"{directory}: no {CONFIG_FILE}; is this a checkpoint directory written by vintix?")
     path = found
     try:
-        meta = json.loads(path.read_text())
+        meta = json_loads(path.read_text())
     except json.JSONDecodeError as error:
         raise CheckpointError(f"{path}: not valid JSON ({error}); the checkpoint is damaged, re-save it") from error
     missing = [key for key in ("format_version", "config", "groups", "task_norms") if key not in meta]

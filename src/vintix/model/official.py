@@ -32,6 +32,7 @@ import numpy as np
 import torch
 
 from vintix.atomic import atomic_path, atomic_write_text, check_replaceable, folder_lock
+from vintix.errors import json_loads
 from vintix.model.checkpoint import (
     WEIGHTS_FILE,
     CheckpointError,
@@ -340,7 +341,7 @@ def _read_json(path: Path) -> dict[str, Any]:
         raise OfficialFormatError(f"{path.parent}: no {path.name}; a release snapshot holds {WEIGHTS}, {CONFIG} "
                                   f"and {METADATA} (hf download dunnolab/Vintix --local-dir DIR)")
     try:
-        data = json.loads(path.read_text())
+        data = json_loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise OfficialFormatError(f"{path}: not valid JSON ({error}); download the snapshot again") from error
     if not isinstance(data, dict):

@@ -32,7 +32,7 @@ from matplotlib.ticker import MaxNLocator
 
 from vintix.atomic import atomic_path, atomic_write_text, check_output_kind, folder_lock
 from vintix.demonstrators.goal_blind import read_goal_blind
-from vintix.errors import VintixError
+from vintix.errors import VintixError, json_loads
 from vintix.evaluate.config import PLATEAU_SHOTS
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import (
@@ -92,7 +92,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
         raise VintixError(f"{folder}: no {EPISODES_FILE} and {RUN_FILE}; point to a folder written by `vintix eval`")
     rewrite = "re-run `vintix eval` into this folder"
     try:
-        run = json.loads(run_file.read_text())
+        run = json_loads(run_file.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise VintixError(f"{run_file}: not valid JSON ({error}); {rewrite}") from error
     if not isinstance(run, dict):

@@ -29,6 +29,7 @@ import torch
 from safetensors.torch import load_file
 
 from vintix.atomic import PARTIAL_SUFFIX, atomic_directory, atomic_save_tensors, atomic_write_text
+from vintix.errors import json_loads
 from vintix.model.checkpoint import (
     CONFIG_FILE,
     WEIGHTS_FILE,
@@ -71,7 +72,7 @@ def latest_checkpoint(out: str | os.PathLike[str]) -> Path | None:
 def _state_problem(directory: Path) -> str | None:
     """What is wrong with a checkpoint's ``trainer.json`` (None: it has what resuming reads)."""
     try:
-        state = json.loads((directory / STATE_FILE).read_text())
+        state = json_loads((directory / STATE_FILE).read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
         return f"{STATE_FILE} is not readable JSON ({error})"
     counts = ("step", "tokens", "world_size")
@@ -202,7 +203,7 @@ def _optimizer_tensors(optimizer: torch.optim.Optimizer,
 def load_optimizer(optimizer: torch.optim.Optimizer, names: list[str], directory: Path) -> None:
     """Restore optimizer state saved by `save_training_checkpoint` (names must match the model's)."""
     tensors = load_file(str(directory / OPTIMIZER_FILE))
-    groups = json.loads((directory / STATE_FILE).read_text())["optimizer_param_groups"]
+    groups = json_loads((directory / STATE_FILE).read_text())["optimizer_param_groups"]
     index = {name: i for i, name in enumerate(names)}
     in_groups, in_tensors = {n for g in groups for n in g["params"]}, {k.rsplit("/", 1)[0] for k in tensors}
     missing = sorted((in_groups ^ set(names)) | (in_tensors - set(names)))
@@ -233,7 +234,7 @@ def save_training_checkpoint(
 
 def read_training_state(directory: Path) -> dict[str, Any]:
     """``trainer.json`` of a checkpoint."""
-    return json.loads((directory / STATE_FILE).read_text())
+    return json_loads((directory / STATE_FILE).read_text())
 
 
 def read_rng(directory: Path) -> dict[str, torch.Tensor]:

@@ -30,7 +30,7 @@ import torch
 from vintix.atomic import atomic_write_text
 from vintix.data.hdf5 import LearningHistory, TaskData, dims_text, find_tasks
 from vintix.data.validate import task_mismatch, validate_history
-from vintix.errors import DatasetError, UnknownTaskError, VintixError
+from vintix.errors import DatasetError, UnknownTaskError, VintixError, json_loads
 from vintix.model.model import GroupSpec, TaskNorm
 from vintix.tasks import TaskSpec, get_task, resolve_tasks
 from vintix.userdirs import user_cache_dir
@@ -126,7 +126,7 @@ def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache
     fingerprint = content_fingerprint(task.history_paths)
     if path.is_file():
         try:
-            cached = json.loads(path.read_text())
+            cached = json_loads(path.read_text())
             if (cached.get("fingerprint") == fingerprint and cached.get("validated") is True
                     and _finite(cached["obs_mean"]) and _finite(cached["obs_std"]) and _finite(cached["reward_std"])):
                 return cached["obs_mean"], cached["obs_std"], cached["reward_std"]
