@@ -849,6 +849,22 @@ documented("train", "statistics follow a history changed in place (same size, mt
            stats_follow_an_in_place_change)
 
 
+def damaged_log_on_resume() -> str | None:
+    """Issue 55, class 6: a run whose log.csv was damaged resumes, keeping the damaged file aside and saying so."""
+    run = WORK / "run-damaged-log"
+    if not run.exists():
+        shutil.copytree(trained_run(), run)
+    (run / "log.csv").write_bytes(b"step,loss\n\xff\xfe garbage,1\nnot-a-step,2\n")
+    code, output = invoke("train", "--data", clean_data(), "--out", run, *QUICK_TRAIN, "--set", "max_steps=3",
+                          "--set", "allow_resume_changes=true")
+    if code != 0:
+        return f"exit {code}: {output[-300:]}"
+    return None if "kept as" in output and (run / "log.csv.damaged").is_file() else f"not said: {output[-300:]}"
+
+
+documented("train", "resume with a damaged log.csv: the run goes on, the damaged log kept aside", damaged_log_on_resume)
+
+
 def resume_falls_back(run: str) -> Callable[[], str | None]:
     def check() -> str | None:
         out = RUNS[run]()
@@ -1291,6 +1307,7 @@ def probe_code() -> Path:
         "from pathlib import Path\n\nimport vintix\n\n\ndef make(**kwargs):\n"
         "    Path(__file__).with_name('ran').touch()\n    return vintix.make_env('reach-v3', seed=0)\n\n\n"
         "def broken(*args, **kwargs):\n    raise RuntimeError('boom in user code')\n\n\n"
+        "def exits(*args, **kwargs):\n    raise SystemExit(0)\n\n\n"
         "class ActsBroken:\n    def __init__(self, task):\n        pass\n\n"
         "    def act(self, observations, envs):\n        raise ZeroDivisionError('boom in act')\n")
     sys.path.insert(0, str(folder))
@@ -1642,6 +1659,12 @@ def collect_with_demonstrator(source: str) -> list[object]:
 
 api_error("plugins", "a task whose env factory raises", plugin_task("plugin-broken", env_factory="trust_probe:broken"),
           "env_factory 'trust_probe:broken' raised RuntimeError: boom in user code")
+api_error("plugins", "a task whose env factory calls sys.exit(0)", plugin_task("plugin-exits",
+          env_factory="trust_probe:exits"), "env_factory 'trust_probe:exits' raised SystemExit")
+api_error("plugins", "a task whose env factory names a relative module", plugin_task(
+    "plugin-relative", env_factory=".trust_probe:make"), "is not a module name")
+cli_error("plugins", "collect with a demonstrator that calls sys.exit(0) (it used to exit 0, having done nothing)",
+          lambda: collect_with_demonstrator("trust_probe:exits"), "raised SystemExit")
 api_error("plugins", "a custom task in a built-in group with other dims", lambda: __import__("vintix").register_task(
     "plugin-wide", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=200, group="metaworld"),
     "group 'metaworld' has obs_dim 39")

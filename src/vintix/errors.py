@@ -60,7 +60,9 @@ def call_plugin(what: str, fix: str, function: Callable[..., T], *args: Any, **k
         return function(*args, **kwargs)
     except VintixError:
         raise
-    except Exception as error:  # noqa: BLE001 - any exception of foreign code is named, not swallowed
+    # SystemExit too: a plug-in that calls sys.exit() would otherwise end the command with its code, often 0,
+    # having done nothing.
+    except (Exception, SystemExit) as error:  # noqa: BLE001 - any exception of foreign code is named, not swallowed
         raise PluginError(f"{what} raised {type(error).__name__}: {error}. {fix}") from error
 
 

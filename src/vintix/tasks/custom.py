@@ -198,7 +198,7 @@ def load_plugins() -> None:
         try:
             register = entry.load()
             register()
-        except Exception as error:  # a broken plug-in is named, not a traceback from deep inside the registry
+        except (Exception, SystemExit) as error:  # a broken plug-in is named (sys.exit too: it would exit 0 silently)
             raise TaskSpecError(f"the {ENTRY_POINT_GROUP} entry point {entry.name!r} ({entry.value}) failed: "
                                 f"{error!r}; fix or uninstall the package that declares it") from error
     for file in filter(None, os.environ.get(ENV_VARIABLE, "").split(os.pathsep)):
@@ -210,13 +210,22 @@ def import_code(module: str, what: str, named_by: str | None = None) -> ModuleTy
     ids, demonstrators, whatever path a file's name reaches (tests/test_bad_inputs.py fails on an
     ``import_module`` anywhere else). `named_by`: the checkpoint's or dataset's file that named it, if not the
     user: then the import is refused (UntrustedCodeError) unless code is trusted (`code_trusted`)."""
+    if not all(part.isidentifier() for part in module.split(".")):  # "", ".rel", "a..b", "a b"
+        raise TaskSpecError(f"{what}: {module!r} is not a module name; write an absolute one, package.module:name "
+                            "(a relative .module has no package to be relative to here)")
     if named_by is not None and not code_trusted():
         raise UntrustedCodeError(
             f"{what} comes from {named_by}, which names code to run: module {module!r}. vintix runs code that a "
             "checkpoint or dataset names only when you say so: register the task yourself (a tasks file: vintix "
             f"--tasks-file FILE, or {ENV_VARIABLE}), or, if you trust where the file came from, vintix --trust-code "
             f"<command> ({TRUST_VARIABLE}=1; in Python, trust_code=True)")
-    return importlib.import_module(module)
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise  # the caller says where the module was looked for
+    except (Exception, SystemExit) as error:  # noqa: BLE001 - code that fails as it is imported is named
+        raise PluginError(f"{what}: importing module {module!r} raised {type(error).__name__}: {error}. Fix the "
+                          "module: the error is in its code") from error
 
 
 def load_callable(reference: str, what: str, named_by: str | None = None) -> Callable[..., Any]:

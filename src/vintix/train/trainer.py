@@ -14,6 +14,7 @@ import csv
 import dataclasses
 import math
 import os
+import shutil
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -289,11 +290,8 @@ class MetricsLog:
         self.columns = ["step", "tokens", "loss", "lr", "grad_norm", "tokens_per_s", "mfu", "in_context_score",
                         "reward_use_gap", *[f"loss_{g}" for g in groups]]
         self.path = out / "log.csv"
-        kept = []
-        if resume_step and self.path.is_file():
-            with self.path.open() as f:
-                kept = [row for row in csv.DictReader(f) if int(row["step"]) <= resume_step]
-        lines = [",".join(self.columns)] + [",".join(row.get(c, "") for c in self.columns) for row in kept]
+        kept = self._rows_up_to(resume_step) if resume_step and self.path.is_file() else []
+        lines = [",".join(self.columns)] + [",".join(str(row.get(c) or "") for c in self.columns) for row in kept]
         atomic_write_text(self.path, "\n".join(lines) + "\n")
         self._file = self.path.open("a", newline="")
         self._csv = csv.DictWriter(self._file, self.columns)
@@ -303,6 +301,27 @@ class MetricsLog:
 
             # purge_step hides events a killed run wrote after its last checkpoint.
             self.tensorboard = SummaryWriter(str(out / "tensorboard"), purge_step=resume_step or None)
+
+    def _rows_up_to(self, step: int) -> list[dict[str, str]]:
+        """The log's rows up to `step`, those that read; a log with rows that do not (damaged on disk, edited) is
+        copied aside first, and said so: the run goes on, its metrics are not silently dropped."""
+        rows, damaged = [], False
+        try:
+            with self.path.open(newline="") as file:
+                for row in csv.DictReader(file):
+                    logged = str(row.get("step") or "")
+                    if not logged.isdigit():
+                        damaged = True
+                    elif int(logged) <= step:
+                        rows.append(row)
+        except (UnicodeDecodeError, csv.Error):
+            rows, damaged = [], True
+        if damaged:
+            aside = self.path.with_name(self.path.name + ".damaged")
+            shutil.copyfile(self.path, aside)
+            print(f"note: {self.path} has rows that do not read as a log; the whole file is kept as {aside}, and the "
+                  f"log goes on with the {len(rows)} rows that read", flush=True)
+        return rows
 
     def write(self, row: dict[str, float]) -> None:
         """Append one row; every key but step/tokens also goes to TensorBoard."""
