@@ -849,6 +849,11 @@ documented("train", "statistics follow a history changed in place (same size, mt
            stats_follow_an_in_place_change)
 
 
+cli_error("sizes", "train a model of 25,000 layers (it fit memory and built for minutes in silence)", lambda: [
+    "train", "--data", clean_data(), "--out", WORK / "t-deep", "--set", "model_overrides={n_layers: 25000}"],
+    "at most 256")
+
+
 def damaged_log_on_resume() -> str | None:
     """Issue 55, class 6: a run whose log.csv was damaged resumes, keeping the damaged file aside and saying so."""
     run = WORK / "run-damaged-log"

@@ -47,6 +47,11 @@ class ModelConfigError(VintixError, ValueError):
     """A model config with a field of the wrong type or out of range, or an unknown preset."""
 
 
+MAX_LAYERS = 256
+"""The most transformer (or head) layers a config may ask for: the paper's model has 20, and 25,000 layers of a
+tiny width fit in memory yet take minutes to build in silence."""
+
+
 @dataclass
 class ModelConfig:
     """Sizes of the model and how it treats its inputs; start from a preset (below)."""
@@ -124,6 +129,9 @@ class ModelConfig:
                 "sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor and std_epsilon >= 0 and not "
                 f"both 0; got {', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}"
                 f"{'' if small else f', std_epsilon={self.std_epsilon}'}")
+        if self.n_layers > MAX_LAYERS or self.head_layers > MAX_LAYERS:
+            raise ModelConfigError(f"n_layers={self.n_layers}, head_layers={self.head_layers}: at most {MAX_LAYERS} "
+                                   "each (the paper's model has 20); more is a typo, and would take minutes to build")
         if not 0 <= self.keep_first_steps < self.context_len:
             raise ModelConfigError(f"keep_first_steps must lie in [0, context_len = {self.context_len}), got "
                                    f"{self.keep_first_steps}: the window needs room to slide")
