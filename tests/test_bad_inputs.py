@@ -1184,7 +1184,7 @@ def deep_release(folder: Path) -> None:
 
 
 # Sizes (issue 47, class 3): from the config's arithmetic, before a layer is built (10^9 of them never end).
-cli_error("sizes", "import-official of a release of 10^9 layers", damaged_release("deep", deep_release), "GiB")
+cli_error("sizes", "import-official of a release of 10^9 layers", damaged_release("deep", deep_release), "at most 256")
 
 
 # Reports
