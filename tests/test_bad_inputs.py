@@ -1151,6 +1151,16 @@ def damaged_release(name: str, damage: Callable[[Path], object]) -> Callable[[],
     return args
 
 
+def integer_key(folder: Path) -> None:
+    weights = torch.load(folder / "model.pth", weights_only=True)
+    weights[7] = weights.pop(next(iter(weights)))
+    torch.save(weights, folder / "model.pth")
+
+
+cli_error("outputs", "import-official of a release whose model.pth has an integer key", damaged_release(
+    "integer-key", integer_key), "with the key 7")
+
+
 def nan_weight(folder: Path) -> None:
     weights = torch.load(folder / "model.pth", weights_only=True)
     key = next(k for k in weights if k.endswith("weight"))
@@ -1244,6 +1254,26 @@ cli_error("report", "episodes.csv without rows", garbage_results("no-rows"), "no
 
 # Demonstrators
 cli_error("demonstrator", "eval an unknown task", ["demonstrator", "eval", "--task", "reech-v3"], "Did you mean")
+
+
+@once
+def weights_with_an_unknown_policy_kwarg() -> Path:
+    """The shipped Hopper weights, their JSON's policy_kwargs given a keyword no SB3 policy takes."""
+    from vintix.demonstrators.trained import shipped_weights_dir
+
+    folder = WORK / "weights-odd-kwarg"
+    folder.mkdir()
+    for suffix in ("json", "safetensors"):
+        shutil.copy(shipped_weights_dir() / f"mujoco-hopper.{suffix}", folder)
+    meta = json.loads((folder / "mujoco-hopper.json").read_text())
+    meta["policy_kwargs"]["bogus_width"] = 3
+    (folder / "mujoco-hopper.json").write_text(json.dumps(meta))
+    return folder
+
+
+cli_error("demonstrator", "eval with --weights whose policy_kwargs hold a keyword the policy does not take",
+          lambda: ["demonstrator", "eval", "--task", "Hopper-v5", "--episodes", "1", "--weights",
+                   weights_with_an_unknown_policy_kwarg(), "--out", WORK / "scores-odd.csv"], "bogus_width")
 cli_error("demonstrator", "eval a task without weights", ["demonstrator", "eval", "--task", "Humanoid-v5"],
           "no trained demonstrator")
 cli_error("demonstrator", "eval with 0 episodes", ["demonstrator", "eval", "--task", "reach-v3", "--episodes", "0"],

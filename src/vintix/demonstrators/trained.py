@@ -128,9 +128,14 @@ class TrainedDemonstrator:
         action_space = env.action_space
         env.close()
         policy_class = ALGORITHMS[self.metadata["algorithm"]].policy_aliases["MlpPolicy"]
-        self.policy: BasePolicy = policy_class(
-            observation_space, action_space, lr_schedule=lambda _: 0.0, **self.metadata["policy_kwargs"]
-        )
+        try:  # an edited or foreign file: a keyword the policy does not take, a value of the wrong kind
+            self.policy: BasePolicy = policy_class(
+                observation_space, action_space, lr_schedule=lambda _: 0.0, **self.metadata["policy_kwargs"]
+            )
+        except (TypeError, ValueError, KeyError, AttributeError) as error:
+            raise VintixError(f"{meta_path}: its policy_kwargs {self.metadata['policy_kwargs']} do not make a "
+                              f"{self.metadata['algorithm']} policy ({type(error).__name__}: {error}); "
+                              f"{_RESAVE}") from None
         self.obs_mean, self.obs_var = tensors.pop(OBS_MEAN, None), tensors.pop(OBS_VAR, None)
         if (self.obs_mean is None) != (self.obs_var is None):
             raise VintixError(f"{tensors_path} holds only one of {OBS_MEAN} and {OBS_VAR}, the observation "

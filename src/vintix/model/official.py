@@ -357,8 +357,11 @@ def _load_official_weights(path: Path) -> dict[str, torch.Tensor]:
     except Exception as error:  # torch raises several kinds for truncated or foreign files
         raise OfficialFormatError(f"{path}: unreadable as a weights-only torch file ({error}); it is truncated or "
                                   "not the release's, download it again") from error
-    if not isinstance(weights, dict) or not all(isinstance(v, torch.Tensor) for v in weights.values()):
-        raise OfficialFormatError(f"{path}: a state dict (name -> tensor) expected, got {type(weights).__name__}")
+    if not isinstance(weights, dict) or not all(isinstance(k, str) and isinstance(v, torch.Tensor)
+                                                for k, v in weights.items()):
+        odd = next((repr(k) for k in weights if not isinstance(k, str)), None) if isinstance(weights, dict) else None
+        raise OfficialFormatError(f"{path}: a state dict (name -> tensor) expected, got {type(weights).__name__}"
+                                  + (f" with the key {odd}" if odd else ""))
     damaged = [name for name, tensor in weights.items() if tensor.is_floating_point() and not tensor.isfinite().all()]
     if damaged:
         raise OfficialFormatError(f"{path}: tensor(s) {damaged[:5]} hold NaN or inf; the file is damaged, download "
