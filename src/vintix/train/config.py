@@ -87,7 +87,7 @@ class TrainConfig:
     """seed of the model initialization and of the window sampler"""
     threads: int = 0
     """torch CPU threads of each training process (0: auto, the cores the load average leaves idle, at least one:
-    on a 2-core machine with one core busy, 2 threads ran 2.2x slower than 1); `vintix train --threads`"""
+    on a 2-core machine running another training, 2 threads ran 3.2x slower than 1); `vintix train --threads`"""
     num_workers: int = 0
     """DataLoader worker processes per training process (0: load in the training process)"""
     device: str = "auto"
