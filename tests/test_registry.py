@@ -14,7 +14,8 @@ def test_registry_has_every_task_of_the_paper():
     assert counts == {"mujoco": 11, "metaworld": 50, "industrial_benchmark": 21, "bidexhands": 20}
     # and the package's own hidden-goal tasks, which have no published scores
     icrl = {t.name for t in list_tasks(domain="icrl")}  # the discrete benchmarks: tests/test_envs_icrl.py
-    assert {t.name for t in list_tasks()} - {t.name for t in paper} - icrl == {"point-goal-v1", "Reacher-hidden-v5"}
+    assert {t.name for t in list_tasks()} - {t.name for t in paper} - icrl == {
+        "point-goal-v1", "Reacher-hidden-v5", "HalfCheetah-Vel-v5", "HalfCheetah-Dir-v5", "Ant-Dir-v5"}
     toy = get_task("point-goal-v1")
     assert toy.domain == "toy" and toy.paper_expert is None and toy.paper_vintix_normalized is None
     hidden = get_task("Reacher-hidden-v5")

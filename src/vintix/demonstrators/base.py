@@ -14,7 +14,7 @@ import numpy as np
 
 from vintix.errors import MissingDependencyError, VintixError, call_plugin
 from vintix.tasks import get_task
-from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS
+from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, META_RL_TASKS
 
 
 class Demonstrator(Protocol):
@@ -114,6 +114,9 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
         from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
 
         return ScriptedPointGoalDemonstrator()
+    if spec.name in META_RL_TASKS:
+        raise VintixError(f"{spec.name!r} has no demonstrator yet: its goal-aware expert (the hidden parameter in "
+                          "its observation) is still to be trained; the plain body's expert would ignore the parameter")
     if spec.name in HIDDEN_GOAL_MUJOCO_TASKS:
         if weights is not None:
             raise VintixError(f"{spec.name!r}'s expert is scripted (inverse kinematics): leave the weights out")

@@ -20,6 +20,9 @@ from vintix.errors import MissingDependencyError, UnsupportedOptionError, Vintix
 from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, TaskSpec, builtin_tasks, get_task
 
 NAMESPACE = "vintix"
+ENV_CLASSES = {"HalfCheetah-Vel-v5": "HalfCheetahVelEnv", "HalfCheetah-Dir-v5": "HalfCheetahDirEnv",
+               "Ant-Dir-v5": "AntDirEnv"}
+"""The meta-RL tasks' env classes in `vintix.tasks.meta_mujoco` (imported only when one is made)."""
 
 
 def gymnasium_id(spec: TaskSpec) -> str:
@@ -54,12 +57,10 @@ def register_gymnasium_envs() -> None:
                          max_episode_steps=spec.episode_length)
     for spec in builtin_tasks("mujoco"):
         if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and gymnasium_id(spec) not in gym.registry:
-            gym.register(
-                gymnasium_id(spec),
-                entry_point="vintix.tasks.reacher_hidden:ReacherHiddenEnv",
-                kwargs={"episode_length": spec.episode_length},
-                max_episode_steps=spec.episode_length,
-            )
+            entry_point = ("vintix.tasks.reacher_hidden:ReacherHiddenEnv" if spec.name == "Reacher-hidden-v5" else
+                           f"vintix.tasks.meta_mujoco:{ENV_CLASSES[spec.name]}")
+            gym.register(gymnasium_id(spec), entry_point=entry_point, kwargs={"episode_length": spec.episode_length},
+                         max_episode_steps=spec.episode_length)
 
 
 class SeedFirstReset(gym.Wrapper):

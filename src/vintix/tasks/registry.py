@@ -138,22 +138,33 @@ def _toy_tasks() -> list[TaskSpec]:
                      paper_histories=0)]
 
 
-HIDDEN_GOAL_MUJOCO_TASKS = ("Reacher-hidden-v5",)
-"""MuJoCo tasks of the package's own whose goal only the rewards reveal (not the paper's; no published scores)."""
+HIDDEN_GOAL_MUJOCO_TASKS = ("Reacher-hidden-v5", "HalfCheetah-Vel-v5", "HalfCheetah-Dir-v5", "Ant-Dir-v5")
+"""MuJoCo tasks of the package's own whose goal only the rewards reveal (not the paper's; no published scores):
+Reacher-hidden (`vintix.tasks.reacher_hidden`) and the meta-RL benchmarks (`vintix.tasks.meta_mujoco`)."""
+META_RL_TASKS = HIDDEN_GOAL_MUJOCO_TASKS[1:]
+"""The meta-RL locomotion benchmarks (`vintix.tasks.meta_mujoco`)."""
 
 
 def has_hidden_goal(spec: TaskSpec) -> bool:
     """Whether `spec`'s env keeps a goal it never shows, drawn from its seed (Meta-World, the toy, the discrete
-    benchmarks, Reacher-hidden-v5): the tasks an evaluation's goal protocol is about."""
+    benchmarks, Reacher-hidden-v5, the meta-RL tasks): the tasks an evaluation's goal protocol is about."""
     return spec.domain in ("metaworld", "toy", "icrl") or spec.name in HIDDEN_GOAL_MUJOCO_TASKS
 
 
 def _hidden_goal_mujoco_tasks() -> list[TaskSpec]:
     # Reacher-v5's episode length and reward scale; its own encoder group, since it observes 6 of Reacher's 10
     # entries (`vintix.tasks.reacher_hidden`).
-    return [TaskSpec(name="Reacher-hidden-v5", domain="mujoco", group="mujoco-reacher-hidden", obs_dim=6, act_dim=2,
-                     episode_length=50, reward_scale=0.1, split="train", aliases=(), paper_random=None,
-                     paper_expert=None, paper_vintix_normalized=None, paper_history_length=0, paper_histories=0)]
+    reacher = TaskSpec(name="Reacher-hidden-v5", domain="mujoco", group="mujoco-reacher-hidden", obs_dim=6, act_dim=2,
+                       episode_length=50, reward_scale=0.1, split="train", aliases=(), paper_random=None,
+                       paper_expert=None, paper_vintix_normalized=None, paper_history_length=0, paper_histories=0)
+    # The meta-RL tasks observe their bodies as gymnasium's v5 envs do: the same encoder groups, 200-step episodes.
+    bodies = {"HalfCheetah-Vel-v5": ("mujoco-halfcheetah", 17, 6), "HalfCheetah-Dir-v5": ("mujoco-halfcheetah", 17, 6),
+              "Ant-Dir-v5": ("mujoco-ant", 105, 8)}
+    return [reacher] + [
+        TaskSpec(name=name, domain="mujoco", group=group, obs_dim=obs_dim, act_dim=act_dim, episode_length=200,
+                 reward_scale=0.1, split="train", aliases=(), paper_random=None, paper_expert=None,
+                 paper_vintix_normalized=None, paper_history_length=0, paper_histories=0)
+        for name, (group, obs_dim, act_dim) in bodies.items()]
 
 
 @cache
