@@ -1609,6 +1609,35 @@ def recipe_file(name: str, content: dict[str, object]) -> Path:
     return path
 
 
+# More of class 2 and 5, of our own: what a planted file or a typo does to each command.
+cli_error("values", "eval --threads 5000", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--threads", "5000"], "--threads")
+cli_error("values", "train --threads 5000", lambda: ["train", "--data", clean_data(), "--threads", "5000"],
+          "--threads")
+cli_error("values", "report --gap-shots backwards", lambda: [
+    "report", eval_results(), "--gap-shots", "3-1", "--out", WORK / "r-gap-back"], "first <= last")
+cli_error("values", "report --gap-shots not a range", lambda: [
+    "report", eval_results(), "--gap-shots", "all", "--out", WORK / "r-gap-all"], "give FIRST-LAST")
+cli_error("outputs", "eval into a folder whose episodes.csv is a link to a file of yours", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "1", "--out",
+    planted("results", eval_results, "episodes.csv")(), "--overwrite"], "symbolic link", after=victim_changed)
+cli_error("outputs", "report into a folder whose report.md is a link to a file of yours", lambda: [
+    "report", eval_results(), "--out", planted("report", lambda: empty_dir("report-planted")(), "report.md")()],
+    "symbolic link", after=victim_changed)
+
+
+@once
+def dataset_with_a_fifo() -> Path:
+    folder = WORK / "data-fifo"
+    shutil.copytree(clean_data(), folder)
+    os.mkfifo(folder / "metaworld" / "reach-v3" / "history-0009.h5")
+    return folder
+
+
+cli_error("outputs", "collect into a dataset holding a FIFO named like a history (a read would hang)", lambda: [
+    "collect", "--task", "reach-v3", "--histories", "1", "--steps", "50", "--out", dataset_with_a_fifo()], "a FIFO")
+
+
 # Names (issue 55, class 3): a bare name means one thing; a local path shadowing a shipped name is refused.
 def in_shadowing_folder(*argv: object) -> Callable[[], tuple[int, str]]:
     """Run `argv` from a folder holding ./vintix-cpu (a folder), ./tiny (a file) and ./darkroom (a file)."""

@@ -22,6 +22,7 @@ from typer.core import TyperGroup
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError, json_loads
 from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
+from vintix.fields import MAX_THREADS
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
@@ -819,8 +820,8 @@ def train_command(
         "--set", metavar="FIELD=VALUE",
         help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
     threads: Annotated[int | None, typer.Option(
-        min=0, help="torch CPU threads per training process (0: the cores the load average leaves idle; default: "
-        "the config's threads, which is 0 unless it says otherwise)")] = None,
+        min=0, max=MAX_THREADS, help="torch CPU threads per training process (0: the cores the load average leaves "
+        "idle; default: the config's threads, which is 0 unless it says otherwise)")] = None,
 ) -> None:
     """Train (or resume) a model by Algorithm Distillation.
 
@@ -974,7 +975,8 @@ def bench_infer(
     repeats: Annotated[int, typer.Option(min=1, help="timed cached steps per measurement (median)")] = 20,
     recompute: Annotated[bool, typer.Option(
         help="also time a full-window recompute (minutes at the paper's size)")] = True,
-    threads: Annotated[int | None, typer.Option(min=1, help="torch intra-op threads (default: torch's)")] = None,
+    threads: Annotated[int | None, typer.Option(
+        min=1, max=MAX_THREADS, help="torch intra-op threads (default: torch's)")] = None,
     window: Annotated[int | None, typer.Option(
         min=1, help="context length in steps instead of the preset's (a paper-size cache for 16 envs at its "
                     "8192 steps needs 20 GiB)")] = None,
@@ -1053,8 +1055,9 @@ def eval_command(
         "--greedy", help="discrete tasks: act on the argmax of the model's logits (a gaussian policy: its mean) "
         "instead of a draw; by default the policy samples, as AD and DPT are evaluated")] = EvalConfig.greedy,
     device: str = "cpu",
-    threads: Annotated[int, typer.Option(min=1, help="torch CPU threads; 1 suits small models, whose steps are many "
-                                         "tiny ops that a second thread slows down on a busy machine")] = 1,
+    threads: Annotated[int, typer.Option(min=1, max=MAX_THREADS, help="torch CPU threads; 1 suits small models, whose "
+                                         "steps are many tiny ops that a second thread slows down on a busy "
+                                         "machine")] = 1,
     ray: Annotated[str | None, typer.Option(help=_RAY_HELP)] = None,
     overwrite: Annotated[bool, typer.Option(
         help="write into --out even where it holds another checkpoint's results (a re-run of the same checkpoint "

@@ -429,6 +429,8 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
     of a shorter run; a number given must fit the longest run."""
     if plateau_shots is not None and plateau_shots < 1:
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
+    if gap_shots is not None and not 1 <= gap_shots[0] <= gap_shots[1]:  # the runs' own length is checked later
+        raise VintixError(f"--gap-shots {gap_shots[0]}-{gap_shots[1]}: shots count from 1, first <= last")
     check_output_kind(out, "report")
     with folder_lock(out, "vintix report"):  # a second report into `out` is refused, not mixed with this one
         return _write_report(folders, out, table, plateau_shots, model_card, gap_shots)
