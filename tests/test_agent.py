@@ -243,7 +243,7 @@ def test_threads_sets_torchs_cpu_threads_when_asked_and_leaves_them_otherwise():
         assert torch.get_num_threads() == 2
         Agent(tiny_model())
         assert torch.get_num_threads() == 2  # None: left as it is
-        with pytest.raises(AgentInputError, match="threads must be >= 1"):
+        with pytest.raises(AgentInputError, match="threads must be a whole number of CPU threads from 1 to 1024"):
             Agent(tiny_model(), threads=0)
     finally:
         torch.set_num_threads(before)
