@@ -956,6 +956,16 @@ api_error("train", "a NaN loss mid-run (weights diverged after step 3)", nan_los
 
 # Evaluation
 EVAL = ["eval", "--tasks", "reach-v3", "--shots", "1", "--seeds", "1"]
+
+
+def without(argv: list[str], option: str) -> list[str]:
+    """`argv` without `option` and its value (a case that gives the option its own value gives it once)."""
+    if option not in argv:
+        return argv
+    at = argv.index(option)
+    return argv[:at] + argv[at + 2:]
+
+
 for option, value, needle in [("--shots", "0", "shots=0"), ("--seeds", "0", "seeds=0"), ("--seeds", "-1", "seeds=-1"),
                               ("--threads", "0", "--threads"), ("--batch-envs", "0", "batch_envs=0"),
                               ("--first-seed", "-1", "first_seed=-1"), ("--prompt-steps", "-3", "prompt_steps=-3"),
@@ -964,7 +974,7 @@ for option, value, needle in [("--shots", "0", "shots=0"), ("--seeds", "0", "see
                               ("--variation", "viscosity=0.05", "viscosity"),
                               ("--variation", "viscosity=-1", "viscosity")]:
     cli_error("eval", f"{option} {value}", lambda o=option, v=value: [
-        *EVAL, "--checkpoint", model_checkpoint(), o, v, "--out", WORK / f"e-bad{o}{v}"], needle,
+        *without(EVAL, o), "--checkpoint", model_checkpoint(), o, v, "--out", WORK / f"e-bad{o}{v}"], needle,
         after=not_written(lambda o=option, v=value: WORK / f"e-bad{o}{v}"))
 cli_error("eval", "--checkpoint missing", lambda: [*EVAL, "--checkpoint", missing("ckpt")], "no such checkpoint")
 cli_error("eval", "--checkpoint a file", lambda: [*EVAL, "--checkpoint", file_at("ckpt-file", "x")()],

@@ -1,6 +1,7 @@
 """Model checkpoints: safetensors + JSON round trip, and clear errors for damaged or foreign ones."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -135,14 +136,17 @@ def test_a_model_json_that_asks_for_more_memory_than_the_machine_has_is_refused_
         load_pretrained(tmp_path)
 
 
-def test_a_billion_layers_are_refused_from_the_configs_arithmetic_before_one_is_built(tmp_path):
+@pytest.mark.parametrize(("size", "refusal"), [
+    ({"n_layers": 10**9}, "ModelConfigError: n_layers=1000000000, head_layers=.*: at most 256 each"),
+    ({"n_layers": 200, "mlp_dim": 10**9}, "OutOfMemoryError: the model this checkpoint describes needs")])
+def test_a_model_too_deep_or_too_big_is_refused_from_its_config_before_one_is_built(tmp_path, size, refusal):
     save_pretrained(make_model(), tmp_path)
     meta = json.loads((tmp_path / "config.json").read_text())
-    (tmp_path / "config.json").write_text(json.dumps({**meta, "config": {**meta["config"], "n_layers": 10**9}}))
+    (tmp_path / "config.json").write_text(json.dumps({**meta, "config": {**meta["config"], **size}}))
     # In a child with a deadline: building 10^9 blocks, even on the meta device, would never end.
     code = f"from vintix.model import load_pretrained; load_pretrained({str(tmp_path)!r})"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_GUARD_S)
-    assert "OutOfMemoryError: the model this checkpoint describes needs" in result.stderr, result.stderr[-2000:]
+    assert re.search(refusal, result.stderr), result.stderr[-2000:]
 
 
 def test_the_memory_a_process_may_use_counts_its_address_space_limit():

@@ -18,6 +18,7 @@ from vintix.train.data import (
     TrainingDataError,
     WindowBatches,
     WindowDataset,
+    check_finite_rows,
     collate_windows,
     load_training_data,
     task_fingerprint,
@@ -278,18 +279,20 @@ def test_a_cached_entry_from_before_validation_or_with_nan_statistics_is_not_tru
             load(dataset, tmp_path)
 
 
-def test_a_history_damaged_in_place_after_its_statistics_were_cached_is_named_when_a_window_reads_it(dataset, tmp_path):
-    """The statistics cache is keyed on the files' size and modification time; a NaN written in place with both
-    kept (h5py, then the mtime restored) passes the cache, and must end in an error naming the file and row,
-    not in a NaN loss."""
+def test_a_history_damaged_in_place_is_caught_before_training_and_after_loading(dataset, tmp_path):
+    """A NaN written in place with the file's size and mtime kept (h5py, then the mtime restored): the statistics
+    cache notices (its key holds the change time) and validation names the file before training; a history damaged
+    after the data was loaded ends in an error naming the file and row when a window reads it, not in a NaN loss."""
     load(dataset, tmp_path)  # caches the statistics
     gc.collect()  # closes the files that load opened, so h5py may write to one
     path = dataset / "metaworld" / "reach-v3" / "history-0000.h5"
     stat = path.stat()
     poison(path, "reward", 5)
     os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns))
-    data = load(dataset, tmp_path)  # the cache vouches for the file
-    windows = WindowDataset(data, window_len=30, seed=0)
-    with pytest.raises(DatasetError, match=r"history-0000.h5.*reward at row 5 is NaN or inf.*vintix data validate"):
-        for i in range(300):
-            windows[i]
+    with pytest.raises(TrainingDataError, match=r"history-0000.h5.*reward"):
+        load(dataset, tmp_path)  # the cache no longer vouches for the file
+    # Damaged after loading (another process writing while training runs): the rows a window reads are checked.
+    rows = {"observation": np.zeros((10, 3)), "reward": np.zeros(10), "action": np.zeros((10, 2))}
+    rows["reward"][2] = np.nan
+    with pytest.raises(DatasetError, match=r"history-0000.h5.*reward at row 7 is NaN or inf.*vintix data validate"):
+        check_finite_rows(path, 5, rows)

@@ -47,8 +47,8 @@ def _refuse_repeated_options(group: Any, args: list[str]) -> None:
                  else f"{arg} {rest[i + 1]}" for i, arg in enumerate(rest)
                  if arg in names or any(arg.startswith(f"{n}=") for n in names if n[:2] == "--")]
         if len(given) > 1:
-            raise typer.BadParameter(f"{param.opts[0]} is given {len(given)} times ({', '.join(given)}); it takes one "
-                                     "value: give it once")
+            raise VintixError(f"{param.opts[0]} is given {len(given)} times ({', '.join(given)}); it takes one value: "
+                              "give it once")
 
 
 class _Commands(TyperGroup):
@@ -57,7 +57,10 @@ class _Commands(TyperGroup):
     code 2, never as a traceback. Before any command runs, an option it takes once given twice is refused."""
 
     def parse_args(self, ctx: typer.Context, args: list[str]) -> list[str]:  # type: ignore[override]
-        _refuse_repeated_options(self, args)
+        try:
+            _refuse_repeated_options(self, args)
+        except VintixError as error:
+            raise _fail(error) from None
         return super().parse_args(ctx, args)
 
     # TyperGroup declares the context as the click Context typer vendors (typer._click, not exported);
@@ -294,8 +297,10 @@ def collect(
         else:
             raise VintixError("give exactly one of --task or --recipe")
         if plan:
-            check_demonstrators(plans)  # what collect would refuse, --plan refuses too
+            untrained = check_demonstrators(plans, untrained_ok=True)  # what collect would refuse, --plan refuses too
             _print_collection_plan(plans, workers, rates)
+            for note in untrained:
+                console.print(f"[yellow]note:[/yellow] collect needs it first: {note}", highlight=False)
             return
         if out is None:
             raise VintixError("give --out, the dataset root to collect into (or --plan to only see the plan)")

@@ -472,12 +472,22 @@ def collect(plans: CollectionPlan | Sequence[CollectionPlan], root: str | Path, 
         return _collect(plans, root, workers, demonstrator, ray)
 
 
-def check_demonstrators(plans: Sequence[CollectionPlan]) -> None:
+def check_demonstrators(plans: Sequence[CollectionPlan], untrained_ok: bool = False) -> list[str]:
     """Load each plan's demonstrator once, so that a setting it refuses (a behaviour the task has no demonstrator
     for, a probe margin without a probe, a demonstrator that cannot be loaded) fails now: `collect` and
-    `collect --plan` check the same."""
+    `collect --plan` check the same. With `untrained_ok` (a plan for a machine that may have them), a demonstrator
+    whose weights are not trained yet is returned as a note instead."""
+    from vintix.demonstrators.trained import MissingDemonstratorError
+
+    notes = []
     for plan in plans:
-        plan.load_demonstrator()
+        try:
+            plan.load_demonstrator()
+        except MissingDemonstratorError as error:
+            if not untrained_ok:
+                raise
+            notes.append(str(error))
+    return notes
 
 
 def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:

@@ -110,13 +110,17 @@ def _layer_widths(net_arch: object) -> list[object]:
     return list(net_arch) if isinstance(net_arch, list) else [net_arch]
 
 
+class MissingDemonstratorError(VintixError):
+    """A task whose group's demonstrator has not been trained (no weights where they are looked for)."""
+
+
 class TrainedDemonstrator:
     """A trained SB3 policy acting deterministically on a batch of observations."""
 
     def __init__(self, spec: TaskSpec, directory: Path | None = None) -> None:
         tensors_path, meta_path = weights_paths(spec.group, directory)
         if not tensors_path.is_file() or not meta_path.is_file():
-            raise VintixError(
+            raise MissingDemonstratorError(
                 f"no trained demonstrator for {spec.name!r} (group {spec.group!r}) in {tensors_path.parent}: "
                 f"train one with `vintix demonstrator train --task {spec.name}` (see demonstrators/training.py "
                 "for its budget), or collect a task that has one (`vintix demonstrator list`)."

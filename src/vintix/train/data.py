@@ -463,7 +463,7 @@ class WindowDataset(torch.utils.data.Dataset):
 
 def check_finite_rows(path: Path, first: int, rows: dict[str, np.ndarray]) -> None:
     """DatasetError naming `path` where rows read from it (starting at row `first`) hold NaN or inf: a file
-    changed in place after the statistics cache vouched for it, which would otherwise end as a NaN loss."""
+    changed while training reads it (after validation), which would otherwise end as a NaN loss."""
     for name, values in rows.items():
         if np.issubdtype(values.dtype, np.floating) and not np.isfinite(values).all():
             row = first + int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
