@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
 import pickle
 
 import h5py
@@ -316,3 +317,13 @@ def test_reader_pickles_without_its_handle(tmp_path):
     history.read(0, 1)
     copy = pickle.loads(pickle.dumps(history))
     assert_rows_equal(copy.read(0, 12), rows)
+
+
+def test_files_written_atomically_get_the_permissions_a_plain_open_gives(tmp_path):
+    """Temporaries are created exclusively (mkstemp, 0600); the published file must not stay private."""
+    umask = os.umask(0o022)
+    os.umask(umask)
+    path = tmp_path / "h.h5"
+    write(path, make_rows(5), chunk_size=5)
+    atomic_write_text(tmp_path / "t.json", "{}")
+    assert {oct(p.stat().st_mode & 0o777) for p in (path, tmp_path / "t.json")} == {oct(0o666 & ~umask)}

@@ -21,6 +21,8 @@ if TYPE_CHECKING:
     import torch
 
 PARTIAL_SUFFIX = ".partial"
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)  # read once: the process's umask, which files written atomically get as plain open() would give
 
 
 def new_partial_file(path: str | os.PathLike[str]) -> Path:
@@ -30,6 +32,7 @@ def new_partial_file(path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     handle, name = tempfile.mkstemp(dir=path.parent, prefix=f"{path.name}.", suffix=PARTIAL_SUFFIX)
     os.close(handle)
+    os.chmod(name, 0o666 & ~_UMASK)  # mkstemp's 0600 would make every output private: the permissions open() gives
     return Path(name)
 
 
@@ -47,7 +50,9 @@ def new_partial_folder(path: str | os.PathLike[str]) -> Path:
     """A new, empty temporary folder beside `path` to assemble it in, created exclusively (`new_partial_file`)."""
     path = Path(path)
     make_parent_dirs(path)
-    return Path(tempfile.mkdtemp(dir=path.parent, prefix=f"{path.name}.", suffix=PARTIAL_SUFFIX))
+    folder = tempfile.mkdtemp(dir=path.parent, prefix=f"{path.name}.", suffix=PARTIAL_SUFFIX)
+    os.chmod(folder, 0o777 & ~_UMASK)  # mkdir's, not mkdtemp's 0700
+    return Path(folder)
 
 
 def check_output_path(path: str | os.PathLike[str]) -> None:
