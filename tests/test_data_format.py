@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import flip_a_byte_of_data
+from vintix.atomic import atomic_write_text
 from vintix.data import (
     DatasetError,
     LearningHistory,
