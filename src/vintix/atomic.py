@@ -32,7 +32,6 @@ def new_partial_file(path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     handle, name = tempfile.mkstemp(dir=path.parent, prefix=f"{path.name}.", suffix=PARTIAL_SUFFIX)
     os.close(handle)
-    os.chmod(name, 0o666 & ~_UMASK)  # mkstemp's 0600 would make every output private: the permissions open() gives
     return Path(name)
 
 
@@ -94,10 +93,12 @@ def make_parent_dirs(path: str | os.PathLike[str]) -> None:
 
 
 def publish(temporary: Path, final: str | os.PathLike[str]) -> None:
-    """Give a finished temporary file its final name."""
+    """Give a finished temporary file its final name, and the permissions a plain open() would have given it
+    (temporaries are created 0600, and a library writing one may replace it with a file of its own)."""
     # Without fsync, a crash shortly after the rename can leave the new name pointing at empty blocks.
-    fd = os.open(temporary, os.O_RDONLY)
+    fd = os.open(temporary, os.O_RDONLY | os.O_NOFOLLOW)
     try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
         os.fsync(fd)
     finally:
         os.close(fd)

@@ -8,7 +8,9 @@ W=${1:-icrl-benchmarks}
 cell() { scripts/icrl_benchmark.sh "$1" "$2" "$3" "$W/$1"; }
 cell darkroom-ad darkroom-ad DarkRoom-heldout-v0
 cell darkroom-adeps darkroom DarkRoom-heldout-v0
-cell darkroom-search darkroom-search DarkRoom-heldout-v0
+cell darkroom-search darkroom-search DarkRoom-heldout-v0      # DART (the shipped darkroom); the 15- and 40-episode
+                                                              # variants: the recipe's earlier versions (README)
+cell keytodoor-search keytodoor-search KeyToDoor-heldout-v0
 cell bandit-posterior bandit BernoulliBandit-v0
 # Greedy actions (greedy/ here): the same checkpoints, argmax instead of a draw.
 for source in darkroom-ad darkroom-adeps darkroom-search; do
@@ -17,4 +19,6 @@ for source in darkroom-ad darkroom-adeps darkroom-search; do
 done
 vintix eval --checkpoint "$W/darkroom-search/run" --tasks DarkRoom-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
   --greedy --reward-input zero --out "$W/greedy/darkroom-search-zero"
+vintix eval --checkpoint "$W/keytodoor-search/run" --tasks KeyToDoor-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
+  --greedy --out "$W/greedy/keytodoor-search"
 python scripts/bandit_baselines.py "$W/bandit-posterior/results/true"
