@@ -3,7 +3,7 @@
 #   scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]
 #     RECIPE: a recipe of src/vintix/collect/recipes (darkroom-search, darkroom-adeps, darkroom-ad, ...)
 #     CONFIG: the training config (darkroom, darkroom-ad, ...); TASK: the held-out task to evaluate on
-#     (DarkRoom-heldout-v0, ...); WORK_DIR default: RECIPE/ (collection and training resume where they stopped)
+#     (DarkRoom-heldout-v0, ...); WORK_DIR default: RECIPE-cell/ (collection and training resume where they stopped)
 # Collects the recipe's histories, trains CONFIG on them, evaluates the run's selected checkpoint cold on TASK,
 # SHOTS episodes (default 40) on SEEDS env seeds from 100 (default 16: each of Dark Room's held-out goals once) with
 # true, zero and shuffled rewards fed back, writes the report (its "Reward-use gap" section), and prints the wall
@@ -12,7 +12,7 @@ set -euo pipefail
 RECIPE=${1:?usage: scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]}
 CONFIG=${2:?usage: scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]}
 TASK=${3:?usage: scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]}
-W=${4:-$RECIPE}
+W=${4:-$RECIPE-cell}  # not $RECIPE: a folder here named like the recipe would shadow it
 V=${VINTIX:-vintix}
 mkdir -p "$W"
 # stage NAME COMMAND...: run it, appending its wall seconds and the CPU seconds (user + system) of every command run
