@@ -51,9 +51,9 @@ class StopRequest:
 
 
 @contextmanager
-def stop_requests(announce: bool = True) -> Iterator[StopRequest]:
-    """While the block runs, the first SIGINT (Ctrl-C) or SIGTERM only sets the yielded request (and says, if
-    `announce`, that the command stops after its current step); a second one raises KeyboardInterrupt at once.
+def stop_requests() -> Iterator[StopRequest]:
+    """While the block runs, the first SIGINT (Ctrl-C) or SIGTERM only sets the yielded request (and says that the
+    command stops after its current step); a second one raises KeyboardInterrupt at once.
     Outside the main thread (where Python takes no signals) the request is never set."""
     request = StopRequest()
     if threading.current_thread() is not threading.main_thread():
@@ -64,9 +64,7 @@ def stop_requests(announce: bool = True) -> Iterator[StopRequest]:
         if request:
             raise KeyboardInterrupt
         request.signal = signal.Signals(signum).name
-        if announce:
-            print(f"\n{request.signal}: stopping after this step to save it (again to stop at once, unsaved)",
-                  flush=True)
+        print(f"\n{request.signal}: stopping after this step to save it (again to stop at once, unsaved)", flush=True)
 
     previous = {s: signal.signal(s, ask) for s in (signal.SIGINT, signal.SIGTERM)}
     try:

@@ -214,11 +214,7 @@ def import_code(module: str, what: str, named_by: str | None = None) -> ModuleTy
         raise TaskSpecError(f"{what}: {module!r} is not a module name; write an absolute one, package.module:name "
                             "(a relative .module has no package to be relative to here)")
     if named_by is not None and not code_trusted():
-        raise UntrustedCodeError(
-            f"{what} comes from {named_by}, which names code to run: module {module!r}. vintix runs code that a "
-            "checkpoint or dataset names only when you say so: register the task yourself (a tasks file: vintix "
-            f"--tasks-file FILE, or {ENV_VARIABLE}), or, if you trust where the file came from, vintix --trust-code "
-            f"<command> ({TRUST_VARIABLE}=1; in Python, trust_code=True)")
+        raise untrusted(what, named_by, f"module {module!r}")
     try:
         return importlib.import_module(module)
     except ImportError:
@@ -269,11 +265,16 @@ def refuse_untrusted_code(spec: TaskSpec) -> None:
     code = code_it_runs(spec)
     if spec.named_by is None or code is None or code_trusted():
         return
-    raise UntrustedCodeError(
-        f"task {spec.name!r} comes from {spec.named_by}, which names code to run: {code}. vintix runs code that a "
-        "checkpoint or dataset names only when you say so: register the task yourself (a tasks file: vintix "
-        f"--tasks-file FILE, or {ENV_VARIABLE}), or, if you trust where the file came from, vintix --trust-code "
-        f"<command> ({TRUST_VARIABLE}=1; in Python, trust_code=True)")
+    raise untrusted(f"task {spec.name!r}", spec.named_by, code)
+
+
+def untrusted(what: str, named_by: str, code: str) -> UntrustedCodeError:
+    """The refusal of `code` that the file `named_by` names for `what`, and the two ways to allow it."""
+    return UntrustedCodeError(
+        f"{what} comes from {named_by}, which names code to run: {code}. vintix runs code that a checkpoint or "
+        "dataset names only when you say so: register the task yourself (a tasks file: vintix --tasks-file FILE, "
+        f"or {ENV_VARIABLE}), or, if you trust where the file came from, vintix --trust-code <command> "
+        f"({TRUST_VARIABLE}=1; in Python, trust_code=True)")
 
 
 def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:

@@ -57,15 +57,19 @@ def default_stats_cache_dir() -> Path:
 
 def task_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
     """Name, size and mtime of every history file: any rewritten or added history changes it."""
-    return [[p.name, p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(paths)]
+    return [[p.name, st.st_size, st.st_mtime_ns] for p, st in _stats(paths)]
+
+
+def _stats(paths: Sequence[Path]) -> list[tuple[Path, os.stat_result]]:
+    """Each of `paths`, sorted, with its stat (one system call per file)."""
+    return [(p, p.stat()) for p in sorted(paths)]
 
 
 def content_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
     """`task_fingerprint` plus each file's inode and change time (ctime), which every write to it sets and no
     tool can set back: an in-place change that keeps the size and restores the mtime still alters it (what a
     statistics cache must not miss), while reading all the bytes of a large dataset to hash them is not paid."""
-    return [[*entry, p.stat().st_ino, p.stat().st_ctime_ns] for entry, p in zip(task_fingerprint(paths), sorted(paths),
-                                                                                strict=True)]
+    return [[p.name, st.st_size, st.st_mtime_ns, st.st_ino, st.st_ctime_ns] for p, st in _stats(paths)]
 
 
 def streaming_row_stats(histories: Sequence[LearningHistory]) -> tuple[np.ndarray, np.ndarray, int]:
