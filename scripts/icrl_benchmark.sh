@@ -7,7 +7,8 @@
 # Collects the recipe's histories, trains CONFIG on them, evaluates the run's selected checkpoint cold on TASK,
 # SHOTS episodes (default 40) on SEEDS env seeds from 100 (default 16: each of Dark Room's held-out goals once) with
 # true, zero and shuffled rewards fed back, writes the report (its "Reward-use gap" section), and prints the wall
-# and CPU time of each stage (times.txt).
+# and CPU time of each stage (times.txt). TRAIN_ARGS: more `vintix train` options (e.g. --threads 2, or --set
+# 'select_tasks=[DarkRoomHard-v0]' where the config's selection task is not the recipe's).
 set -euo pipefail
 RECIPE=${1:?usage: scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]}
 CONFIG=${2:?usage: scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]}
@@ -24,7 +25,8 @@ stage() {
   echo "$name: $((SECONDS - start)) s wall; CPU so far: $(times | tail -1)" | tee -a "$W/times.txt"
 }
 stage collect $V collect --recipe "$RECIPE" --out "$W/data"
-stage train $V train --config "$CONFIG" --data "$W/data" --out "$W/run"
+# shellcheck disable=SC2086  # TRAIN_ARGS is a list of options
+stage train $V train --config "$CONFIG" --data "$W/data" --out "$W/run" ${TRAIN_ARGS:-}
 for rewards in true zero shuffled; do
   stage "eval $rewards" $V eval --checkpoint "$W/run" --tasks "$TASK" --shots "${SHOTS:-40}" --seeds "${SEEDS:-16}" \
     --first-seed 100 --reward-input "$rewards" --label "$RECIPE" --out "$W/results/$rewards"

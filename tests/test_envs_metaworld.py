@@ -80,3 +80,23 @@ def test_scripted_expert_succeeds_given_the_true_goal(task):
 
 def test_scripted_expert_fails_on_the_observation_a_model_sees():
     assert not scripted_episode_succeeds("reach-v3", show_goal=False)
+
+
+def test_an_ml1_test_goal_is_metaworlds_own_hidden_for_the_envs_life():
+    """`use_ml1_test_goal(i)` plays metaworld.ML1's test goal i (through metaworld's set_task), keeps it across
+    resets, hides it like any goal, and names the range of goals there are."""
+    import pickle
+
+    from vintix.tasks.metaworld import ml1_test_tasks
+
+    env = make_env("reach-v3", seed=3)
+    drawn = env.unwrapped.true_goal
+    env.unwrapped.use_ml1_test_goal(1)
+    for _ in range(2):
+        obs, _ = env.reset()
+        expected = pickle.loads(ml1_test_tasks("reach-v3")[1].data)["rand_vec"][-3:]
+        np.testing.assert_allclose(env.unwrapped.true_goal, expected)
+        assert not np.allclose(env.unwrapped.true_goal, drawn) and not obs[-3:].any()
+    assert len(ml1_test_tasks("reach-v3")) == 50
+    with pytest.raises(ValueError, match="ML1 has 50 test goals"):
+        env.unwrapped.use_ml1_test_goal(50)

@@ -27,6 +27,7 @@ from vintix.evaluate import (
     evaluate_shots,
     in_context_score,
     in_context_scorer,
+    ml1_success,
     parse_variation,
     reference,
     select_tasks,
@@ -96,6 +97,8 @@ def test_evaluate_shots_returns_what_vintix_eval_writes_per_seed_and_shot(tmp_pa
     (["--reference", "bogus"], "unknown reference table 'bogus'"), (["--device", "tpu"], "device 'tpu'"),
     (["--variation", "viscosity=nan"], "variation"),
     (["--reward-input", "none"], "reward_input 'none' is unknown; choose one of 'true', 'zero', 'shuffled'"),
+    (["--ml1", "--shots", "5"], "scored episodes, so shots must be 13, not 5"),
+    (["--ml1", "--first-seed", "48", "--seeds", "3"], "goes past them"),
 ])
 def test_eval_settings_out_of_range_are_named_before_any_env_runs(tmp_path, option, message):
     save_pretrained(tiny_model(), tmp_path / "ckpt")
@@ -104,6 +107,37 @@ def test_eval_settings_out_of_range_are_named_before_any_env_runs(tmp_path, opti
     assert result.exit_code == 2 and not isinstance(result.exception, Exception), result.output  # no traceback
     assert message in " ".join(result.output.split())
     assert not (tmp_path / "results").exists()
+
+
+def test_ml1_plays_metaworlds_test_goals_and_scores_the_three_episodes_after_ten(tmp_path):
+    save_pretrained(tiny_model(), tmp_path / "ckpt")
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "reach-v3", "--ml1",
+                                      "--seeds", "2", "--first-seed", "5", "--out", str(tmp_path / "results")])
+    assert result.exit_code == 0, result.output
+    assert "Meta-World ML1 meta-test" in result.output and "wrote 26 episodes" in result.output  # 13 per run
+    rows = list(csv.DictReader((tmp_path / "results" / "episodes.csv").open()))
+    assert {(r["seed"], r["shot"]) for r in rows} == {(s, str(k)) for s in ("5", "6") for k in range(1, 14)}
+    run = json.loads((tmp_path / "results" / "run.json").read_text())
+    assert "ML1 meta-test" in run["goal_protocol"] and run["config"]["ml1"]
+    # Runs 5 and 6 play ML1's test goals 5 and 6: the same goal as an env that was told it directly.
+    env = make_env("reach-v3", seed=5)
+    env.unwrapped.use_ml1_test_goal(5)
+    runs = evaluate_shots(Agent.from_pretrained(tmp_path / "ckpt"), "reach-v3", shots=1, seeds=1, first_seed=5)
+    ml1_first = next(r for r in rows if r["seed"] == "5" and r["shot"] == "1")
+    assert float(ml1_first["return"]) != pytest.approx(runs.returns[0, 0])  # not the goal seed 5 draws
+    # A task that is not Meta-World's is refused, by name.
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "InvertedPendulum-v5",
+                                      "--ml1", "--seeds", "1", "--out", str(tmp_path / "pendulum")])
+    assert result.exit_code == 2 and "not InvertedPendulum-v5" in " ".join(result.output.split())
+
+
+def test_ml1_success_is_the_mean_over_goals_of_the_scored_episodes():
+    rows = [{"task": "reach-v3", "seed": seed, "shot": shot, "success": float(shot > 10 if seed else shot == 12)}
+            for seed in (0, 1) for shot in range(1, 14)]
+    (summary,) = ml1_success(rows)
+    assert summary["goals"] == 2 and summary["success"] == pytest.approx((1 / 3 + 1) / 2)
+    assert summary["adaptation_first"] == 0 and summary["adaptation_last"] == 0
+    assert summary["low"] <= summary["success"] <= summary["high"]
 
 
 def test_an_unwritable_out_is_named_before_the_run_not_after(tmp_path):

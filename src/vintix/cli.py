@@ -21,7 +21,14 @@ from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
 from vintix.errors import VintixError, json_loads
-from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
+from vintix.evaluate.config import (
+    ML1_ADAPTATION_SHOTS,
+    ML1_SCORED_SHOTS,
+    ML1_SHOTS,
+    ML1_TEST_GOALS,
+    PLATEAU_SHOTS,
+    EvalConfig,
+)
 from vintix.fields import MAX_THREADS
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
@@ -1038,9 +1045,15 @@ def eval_command(
     tasks: Annotated[list[str], typer.Option(
         help="task names, domains or splits (train/test); repeat or comma-separate")],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
-    shots: Annotated[int, typer.Option(help="episodes per run")] = EvalConfig.shots,
+    shots: Annotated[int | None, typer.Option(
+        help=f"episodes per run [default: {EvalConfig.shots}; {ML1_SHOTS} with --ml1]", show_default=False)] = None,
     seeds: Annotated[int, typer.Option(help="runs per task (Meta-World: one hidden goal each)")] = EvalConfig.seeds,
-    first_seed: Annotated[int, typer.Option(help="env seed of the first run")] = EvalConfig.first_seed,
+    first_seed: Annotated[int, typer.Option(help="env seed of the first run (--ml1: its ML1 test goal)")
+                          ] = EvalConfig.first_seed,
+    ml1: Annotated[bool, typer.Option(
+        "--ml1", help=f"Meta-World's ML1 meta-test protocol: run i plays ML1's test goal first-seed + i (of "
+        f"{ML1_TEST_GOALS}), {ML1_ADAPTATION_SHOTS} adaptation episodes then {ML1_SCORED_SHOTS} scored, success at "
+        "any step; Meta-World tasks only")] = EvalConfig.ml1,
     variation: Annotated[list[str] | None, typer.Option(
         help="MuJoCo physics variation NAME=VALUE, e.g. viscosity=0.05")] = None,
     prompt_from: Annotated[Path | None, typer.Option(
@@ -1073,16 +1086,17 @@ def eval_command(
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.agent.pretrained import checkpoint_name
-    from vintix.evaluate import evaluate, iqm, parse_variation, shot_curves, shots_to_show, summarize
+    from vintix.evaluate import evaluate, iqm, ml1_success, parse_variation, shot_curves, shots_to_show, summarize
     from vintix.tasks.scores import check_table
 
     torch.set_num_threads(threads)
+    shots = shots if shots is not None else ML1_SHOTS if ml1 else EvalConfig.shots
     try:
         check_table(reference)  # summarize() would otherwise meet it only after the whole run
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
                             prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input,
-                            greedy=greedy)
+                            ml1=ml1, greedy=greedy)
         resolved = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(resolved, device)
         rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, True, ray,
@@ -1135,7 +1149,21 @@ def eval_command(
             per_shot.add_row("  success rate",
                              *(_rate(success[shot - 1]) if shot <= len(success) else "" for shot in shown))
     console.print(per_shot)
+    if ml1:
+        _print_ml1(ml1_success(rows))
     console.print(f"wrote {written}")
+
+
+def _print_ml1(summary: list[dict[str, Any]]) -> None:
+    """Meta-World's ML1 score per task (`vintix.evaluate.ml1_success`)."""
+    table = Table(title=f"Meta-World ML1 meta-test: success rate of the {ML1_SCORED_SHOTS} scored episodes after "
+                        f"{ML1_ADAPTATION_SHOTS} adaptation episodes, mean over test goals (95 % CI)")
+    for column in ("task", "test goals", "success", "adaptation ep 1", f"adaptation ep {ML1_ADAPTATION_SHOTS}"):
+        table.add_column(column, justify="left" if column == "task" else "right")
+    for s in summary:
+        table.add_row(s["task"], str(s["goals"]), f"{s['success']:.0%} [{s['low']:.0%}, {s['high']:.0%}]",
+                      _rate(s["adaptation_first"]), _rate(s["adaptation_last"]))
+    console.print(table)
 
 
 def _rate(rate: float | None) -> str:

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
         evaluate_shots,
         in_context_score,
         in_context_scorer,
+        ml1_success,
         parse_variation,
         select_tasks,
         shot_curves,
@@ -29,7 +30,8 @@ if TYPE_CHECKING:
 
 _LAZY = {
     "vintix.evaluate.run": ("ShotResults", "evaluate", "evaluate_shots", "in_context_score", "in_context_scorer",
-                            "parse_variation", "select_tasks", "shot_curves", "shots_to_show", "summarize"),
+                            "ml1_success", "parse_variation", "select_tasks", "shot_curves", "shots_to_show",
+                            "summarize"),
     "vintix.evaluate.summary": ("best_k_plateau", "converged_gap_with_ci", "iqm", "iqm_with_ci"),
 }
 
@@ -58,6 +60,7 @@ __all__ = [
     "in_context_scorer",
     "iqm",
     "iqm_with_ci",
+    "ml1_success",
     "parse_variation",
     "reference",
     "select_tasks",

@@ -19,6 +19,15 @@ PLATEAU_SHOTS = 10
 fewer shots)."""
 
 
+ML1_ADAPTATION_SHOTS = 10
+"""Meta-World's ML1 meta-test protocol: the episodes an agent adapts in before it is scored"""
+ML1_SCORED_SHOTS = 3
+"""... and the episodes it is scored on (success at any step of each)"""
+ML1_SHOTS = ML1_ADAPTATION_SHOTS + ML1_SCORED_SHOTS
+ML1_TEST_GOALS = 50
+"""... on the test goals of `metaworld.ML1` (`vintix.tasks.metaworld.ml1_test_tasks`), 50 per task"""
+
+
 class EvalConfigError(VintixError, ValueError):
     """An evaluation setting out of its range (the message names it)."""
 
@@ -49,6 +58,10 @@ class EvalConfig:
     """the reward fed back to the model: 'true' (the env's), 'zero' (0.0) or 'shuffled' (at each step one
     drawn at random from the rewards the env's current episode has returned so far); returns, success
     and scores always come from the true rewards (the reward-use ablation). A prompt keeps its stored rewards"""
+    ml1: bool = False
+    """Meta-World's ML1 meta-test protocol (docs/evaluation.md): run i plays ML1's test goal first_seed + i instead
+    of a goal drawn from its seed, for 10 adaptation episodes then 3 scored ones (shots must be 13), its score the
+    scored episodes' success rate. Meta-World tasks only"""
     greedy: bool = False
     """act on the argmax of a discrete group's logits (a gaussian policy's mean) instead of a draw; by default the
     policy samples, as AD and DPT evaluate (a greedy policy on a flat distribution never explores)"""
@@ -65,6 +78,20 @@ class EvalConfig:
                                   "first_seed >= 0")
         if not [name for selector in self.tasks for name in selector.split(",") if name.strip()]:
             raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
+        if self.ml1:
+            self._check_ml1()
         if self.reward_input not in REWARD_INPUTS:
             raise EvalConfigError(f"reward_input {self.reward_input!r} is unknown; choose one of "
                                   f"{', '.join(map(repr, REWARD_INPUTS))}")
+
+    def _check_ml1(self) -> None:
+        if self.shots != ML1_SHOTS:
+            raise EvalConfigError(f"ml1: ML1's protocol plays {ML1_ADAPTATION_SHOTS} adaptation and "
+                                  f"{ML1_SCORED_SHOTS} scored episodes, so shots must be {ML1_SHOTS}, not {self.shots}")
+        if self.first_seed + self.seeds > ML1_TEST_GOALS:
+            raise EvalConfigError(f"ml1: runs play ML1's test goals first_seed to first_seed + seeds - 1, and there "
+                                  f"are {ML1_TEST_GOALS} (0 to {ML1_TEST_GOALS - 1}); first_seed={self.first_seed} "
+                                  f"with seeds={self.seeds} goes past them")
+        if self.prompt_from is not None:
+            raise EvalConfigError("ml1: a prompt brings its own history's goal; ML1's runs start cold on its test "
+                                  "goals, so drop prompt_from")

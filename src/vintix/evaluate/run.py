@@ -34,11 +34,12 @@ from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_path, check_replaceable, folder_lock
 from vintix.data.hdf5 import LearningHistory, find_tasks
 from vintix.errors import UnknownTaskError, VintixError, json_loads
-from vintix.evaluate.config import PLATEAU_SHOTS, EvalConfig
-from vintix.evaluate.summary import best_k_plateau
+from vintix.evaluate.config import ML1_ADAPTATION_SHOTS, ML1_SCORED_SHOTS, PLATEAU_SHOTS, EvalConfig, EvalConfigError
+from vintix.evaluate.summary import best_k_plateau, estimate_with_ci
 from vintix.model.model import Vintix
 from vintix.tasks import DOMAINS, TaskSpec, action_space_of, find_task, get_task, make_env, resolve_tasks
 from vintix.tasks.custom import custom_specs
+from vintix.tasks.metaworld import ML1_SEED, MetaWorldTaskEnv
 from vintix.tasks.registry import has_hidden_goal
 from vintix.tasks.scores import Reference, missing_reference_note, reference
 from vintix.train.config import SELECT_METRICS, ConfigError, TrainConfig
@@ -47,6 +48,9 @@ from vintix.train.trainer import Scorer, Selection
 EPISODES_FILE = "episodes.csv"
 RUN_FILE = "run.json"
 GOAL_PROTOCOL = "one hidden goal per env for its life, drawn from the env seed (ML45 meta-RL protocol)"
+ML1_PROTOCOL = (f"Meta-World ML1 meta-test: run i plays test goal first_seed + i of metaworld.ML1(task, "
+                f"seed={ML1_SEED}), {ML1_ADAPTATION_SHOTS} adaptation episodes then {ML1_SCORED_SHOTS} scored ones, "
+                "success at any step")
 _SHUFFLE_STREAM = 1
 """Mixed into the env seed for the shuffled-reward draws: gymnasium seeds the env's own generator with
 the bare seed, and the draws should not share its stream."""
@@ -263,6 +267,10 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
                  for (spec, seed), p in zip(batch, prompts, strict=True)]
     envs = [make_env(spec.name, seed=seed, **config.variation) for spec, seed in batch]
     try:
+        if config.ml1:
+            for env, (_, seed) in zip(envs, batch, strict=True):
+                assert isinstance(env.unwrapped, MetaWorldTaskEnv)  # `_evaluate` refuses other tasks
+                env.unwrapped.use_ml1_test_goal(seed)  # run i: ML1's test goal first_seed + i
         agent.reset([spec.name for spec, _ in batch], [action_space_of(env.action_space) for env in envs],
                     discard_context=True)  # each batch is a new run
         optimal = [optimal_return(env) for env in envs]
@@ -357,6 +365,9 @@ def evaluate(
 def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: str, label: str | None,
               progress: bool, ray: str | None) -> tuple[list[dict[str, Any]], list[str]]:
     specs, notes = select_tasks(config.tasks, list(agent.model.groups), [t.task for t in agent.model.task_norms])
+    if config.ml1 and (others := [spec.name for spec in specs if spec.domain != "metaworld"]):
+        raise EvalConfigError(f"ml1: Meta-World's ML1 protocol is for Meta-World tasks, not {', '.join(others)}; "
+                              "evaluate those without --ml1")
     refs, missing = references([s.name for s in specs])
     started = time.time()
     rows = run_episodes(agent, config, specs, progress, ray, checkpoint)
@@ -372,7 +383,8 @@ def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: st
                            for table, by_task in refs.items()},
             "seconds": round(time.time() - started, 1),
             "torch": torch.__version__,
-        } | ({"goal_protocol": GOAL_PROTOCOL} if any(map(has_hidden_goal, specs)) else {})
+        } | ({"goal_protocol": ML1_PROTOCOL if config.ml1 else GOAL_PROTOCOL} if any(map(has_hidden_goal, specs))
+             else {})
           | ({"custom_tasks": custom} if (custom := custom_specs([s.name for s in specs])) else {}))
     return rows, notes + missing
 
@@ -396,6 +408,24 @@ def summarize(rows: Sequence[dict[str, Any]], table: str = "paper",
                         "paper_vintix": None if paper is None else paper.mean,
                         "success_first": None if success is None else float(success[0]),
                         "success_plateau": None if success is None else best_k_plateau(success, plateau_shots)[0]})
+    return summary
+
+
+def ml1_success(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per task, Meta-World's ML1 score of an ``ml1`` evaluation: the success rate of each run's scored episodes
+    (the 3 after its 10 adaptation episodes), its mean over the runs (test goals) with a 95 % bootstrap interval,
+    beside the success rate of the first and the last adaptation episode."""
+    scored = range(ML1_ADAPTATION_SHOTS + 1, ML1_ADAPTATION_SHOTS + ML1_SCORED_SHOTS + 1)
+    by_run: dict[str, dict[int, dict[int, float]]] = {}
+    for row in rows:
+        by_run.setdefault(row["task"], {}).setdefault(int(row["seed"]), {})[int(row["shot"])] = float(row["success"])
+    summary = []
+    for task, runs in sorted(by_run.items()):
+        success, low, high = estimate_with_ci(np.array([np.mean([run[s] for s in scored]) for run in runs.values()]),
+                                              np.mean)
+        summary.append({"task": task, "goals": len(runs), "success": success, "low": low, "high": high,
+                        "adaptation_first": float(np.mean([run[1] for run in runs.values()])),
+                        "adaptation_last": float(np.mean([run[ML1_ADAPTATION_SHOTS] for run in runs.values()]))})
     return summary
 
 

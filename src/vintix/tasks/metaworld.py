@@ -15,6 +15,7 @@ from functools import cache
 from typing import Any, Literal
 
 import gymnasium as gym
+import metaworld
 import numpy as np
 from metaworld.env_dict import ALL_V3_ENVIRONMENTS
 
@@ -52,13 +53,18 @@ class MetaWorldTaskEnv(gym.Env):
         self._sawyer.max_path_length = episode_length
         self.observation_space = self._sawyer.observation_space
         self.action_space = self._sawyer.action_space
+        self._ml1_task: metaworld.Task | None = None
+        """ML1's test goal that `use_ml1_test_goal` put in place of the seed's"""
         self._seed_and_draw_goal(seed)
 
     def _seed_and_draw_goal(self, seed: int | None) -> None:
         if seed is None:
             seed = int(np.random.SeedSequence().generate_state(1)[0])
         self._sawyer.seed(seed)
-        self._draw_goal()
+        if self._ml1_task is None:
+            self._draw_goal()
+        else:
+            self._sawyer.set_task(self._ml1_task)
 
     def _draw_goal(self) -> None:
         """Draw a goal from the sawyer env's own seeded RNG, then freeze it.
@@ -73,11 +79,12 @@ class MetaWorldTaskEnv(gym.Env):
         self._sawyer._freeze_rand_vec = True
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        """`seed` re-seeds the env and draws the goal anew, exactly as a new env with that seed would."""
+        """`seed` re-seeds the env and draws the goal anew, exactly as a new env with that seed would (an ML1 test
+        goal stays)."""
         super().reset(seed=seed)
         if seed is not None:
             self._seed_and_draw_goal(seed)
-        elif self.resample_goal_each_episode:
+        elif self.resample_goal_each_episode and self._ml1_task is None:
             self._draw_goal()
         obs, info = self._sawyer.reset()
         return obs, info
@@ -117,6 +124,16 @@ class MetaWorldTaskEnv(gym.Env):
             sawyer._target_pos = true_goal
         return np.asarray(rewards, dtype=np.float64)
 
+    def use_ml1_test_goal(self, index: int) -> None:
+        """Hide Meta-World's ML1 meta-test goal `index` (of `ml1_test_tasks`: goals ML1's meta-training never uses)
+        for the env's life instead of one drawn from a seed (a seeded reset keeps it), through metaworld's own
+        `set_task`."""
+        tasks = ml1_test_tasks(self.task_name)
+        if not 0 <= index < len(tasks):
+            raise ValueError(f"{self.task_name}: ML1 has {len(tasks)} test goals (0 to {len(tasks) - 1}), not {index}")
+        self._ml1_task = tasks[index]
+        self._sawyer.set_task(self._ml1_task)
+
     def place_goal(self, goal: np.ndarray) -> None:
         """Hide `goal` from the next reset on, keeping the object's start: the goal part of metaworld's
         rand_vec (its last 3 entries) is replaced. For checks of what the goal alone changes."""
@@ -141,6 +158,17 @@ class MetaWorldTaskEnv(gym.Env):
 
     def close(self) -> None:
         self._sawyer.close()
+
+
+ML1_SEED = 0
+"""The seed of `metaworld.ML1` whose test goals `use_ml1_test_goal` plays: ML1 draws its 50 train and 50 test goals
+from NumPy's global generator, so a benchmark without a seed would hold other goals each time."""
+
+
+@cache
+def ml1_test_tasks(task_name: str) -> tuple[metaworld.Task, ...]:
+    """Meta-World's ML1 meta-test goals of `task_name` (``metaworld.ML1(task_name, seed=ML1_SEED).test_tasks``)."""
+    return tuple(metaworld.ML1(task_name, seed=ML1_SEED).test_tasks)
 
 
 @cache
