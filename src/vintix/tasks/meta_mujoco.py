@@ -8,8 +8,10 @@ the env's seed and kept for the env's life, never in the observation; only the r
   reward ``-|v - v_target| - 0.05 * |a|^2`` (VariBAD's and PEARL's ``forward_reward - 0.5 * 1e-1 * sum(a^2)``).
 - **HalfCheetah-Dir** (``HalfCheetah-Dir-v5``): run forward or backward, the direction drawn from {-1, +1};
   reward ``direction * v - 0.05 * |a|^2``.
-- **Ant-Dir** (``Ant-Dir-v5``): VariBAD's on-policy AntDir, the forward/backward variant (PEARL's ant-dir draws a
-  direction in the plane; this is the two-direction one): walk along +x or -x, the direction drawn from {-1, +1};
+- **Ant-Dir** (``Ant-Dir-v5``): the forward/backward Ant-Dir that VariBAD's and PEARL's papers describe ("Ant-Fwd-
+  Back"): walk along +x or -x, the direction drawn from {-1, +1}. Their released code differs from their text:
+  VariBAD's ``AntDirEnv`` reads the ±1 as an angle in radians (walk at ±57° from x), PEARL's ant-dir config draws
+  2 random directions in the plane;
   reward ``direction * v_x`` plus Ant-v5's own control, contact and survival terms (weights 0.5, 5e-4, 1.0, as
   VariBAD's ant), terminated when the torso leaves Ant-v5's healthy height range [0.2, 1.0] as theirs is.
 
