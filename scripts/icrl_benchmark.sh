@@ -16,13 +16,14 @@ TASK=${3:?usage: scripts/icrl_benchmark.sh RECIPE CONFIG TASK [WORK_DIR]}
 W=${4:-$RECIPE-cell}  # not $RECIPE: a folder here named like the recipe would shadow it
 V=${VINTIX:-vintix}
 mkdir -p "$W"
-# stage NAME COMMAND...: run it, appending its wall seconds and the CPU seconds (user + system) of every command run
-# so far to times.txt
+# stage NAME COMMAND...: run it, appending its wall seconds and CPU seconds (user + system, its worker processes
+# included) to times.txt
 stage() {
-  local name=$1 start=$SECONDS
+  local name=$1
   shift
-  "$@"
-  echo "$name: $((SECONDS - start)) s wall; CPU so far: $(times | tail -1)" | tee -a "$W/times.txt"
+  local TIMEFORMAT="$name: %1R s wall, %1U s user + %1S s system CPU"
+  { time "$@" 2>&3; } 3>&2 2>> "$W/times.txt"
+  tail -1 "$W/times.txt"
 }
 stage collect $V collect --recipe "$RECIPE" --out "$W/data"
 # shellcheck disable=SC2086  # TRAIN_ARGS is a list of options
