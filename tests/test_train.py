@@ -25,7 +25,7 @@ from vintix.agent import Agent
 from vintix.atomic import folder_lock
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
-from vintix.errors import DatasetError
+from vintix.errors import DatasetError, UnknownTaskError
 from vintix.interrupt import Interrupted
 from vintix.model import CheckpointError, load_pretrained
 from vintix.model.checkpoint import read_metadata
@@ -338,6 +338,16 @@ def test_selection_needs_a_scorer_and_a_logged_step(metaworld_data, tmp_path):
         Trainer(make_config(metaworld_data, tmp_path / "run", select_every=2))
     with pytest.raises(ConfigError, match="expert_rows must be 'auto' or 'tail', got 'all'"):
         make_config(metaworld_data, tmp_path / "run", expert_rows="all")
+    # A selection task that is unknown, or outside the data's groups, fails before the first step, not at the first
+    # selection after minutes of training.
+    never = lambda model, tasks: pytest.fail("no selection should run")  # noqa: E731
+    with pytest.raises(UnknownTaskError, match="unknown task 'NoSuch-v0'"):
+        Trainer(make_config(metaworld_data, tmp_path / "run", select_every=2, log_every=2, select_tasks=["NoSuch-v0"]),
+                scorer=never)
+    with pytest.raises(UnknownTaskError, match="group 'mujoco-hopper', which the model has no encoder for"):
+        Trainer(make_config(metaworld_data, tmp_path / "run", select_every=2, log_every=2, select_tasks=["Hopper-v5"]),
+                scorer=never)
+    assert not (tmp_path / "run" / "checkpoints").exists()
 
 
 def test_off_a_terminal_training_says_how_long_it_will_take_and_reports_each_selection(metaworld_data, tmp_path,

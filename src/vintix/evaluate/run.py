@@ -37,7 +37,7 @@ from vintix.errors import UnknownTaskError, VintixError, json_loads
 from vintix.evaluate.config import ML1_ADAPTATION_SHOTS, ML1_SCORED_SHOTS, PLATEAU_SHOTS, EvalConfig, EvalConfigError
 from vintix.evaluate.summary import best_k_plateau, estimate_with_ci
 from vintix.model.model import Vintix
-from vintix.tasks import DOMAINS, TaskSpec, action_space_of, find_task, get_task, make_env, resolve_tasks
+from vintix.tasks import TaskSpec, action_space_of, get_task, make_env, select_tasks
 from vintix.tasks.custom import custom_specs
 from vintix.tasks.metaworld import ML1_SEED, MetaWorldTaskEnv
 from vintix.tasks.registry import has_hidden_goal
@@ -83,33 +83,6 @@ def parse_variation(items: Sequence[str]) -> dict[str, float]:
                               f"{number:g}); give each once")
         variation[name.strip()] = number
     return variation
-
-
-def select_tasks(selectors: Sequence[str], groups: Sequence[str], checkpoint_tasks: Sequence[str] = ()
-                 ) -> tuple[list[TaskSpec], list[str]]:
-    """Tasks to evaluate and notes on the ones skipped: a domain or split keeps the tasks of the
-    checkpoint's groups and those it has statistics for (an imported model's groups have other names);
-    a task named explicitly that is neither is an error."""
-    selectors = [s for selector in selectors for s in selector.split(",") if s]
-    named = {get_task(s).name for s in selectors if s not in DOMAINS and s not in ("train", "test")}
-    known = {spec.name for task in checkpoint_tasks if (spec := find_task(task)) is not None}
-    kept, skipped = [], []
-    for spec in resolve_tasks(selectors):
-        if spec.group in groups or spec.name in known:
-            kept.append(spec)
-        elif spec.name in named:
-            raise UnknownTaskError(
-                f"task {spec.name!r} is in group {spec.group!r}, which the checkpoint has no encoder for "
-                f"(it has {', '.join(sorted(groups))})"
-            )
-        else:
-            skipped.append(spec.name)
-    notes = ([f"skipped {len(skipped)} selected task(s) whose group the checkpoint lacks: {', '.join(skipped)}"]
-             if skipped else [])
-    if not kept:
-        raise UnknownTaskError(
-            f"none of {selectors} is a task of the checkpoint's groups ({', '.join(sorted(groups))})")
-    return kept, notes
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,16 @@ from vintix.tasks.make import (
     register_gymnasium_envs,
     task_action_space,
 )
-from vintix.tasks.registry import DOMAINS, ReferenceScore, TaskSpec, find_task, get_task, list_tasks, resolve_tasks
+from vintix.tasks.registry import (
+    DOMAINS,
+    ReferenceScore,
+    TaskSpec,
+    find_task,
+    get_task,
+    list_tasks,
+    resolve_tasks,
+    select_tasks,
+)
 
 register_gymnasium_envs()
 
@@ -26,5 +35,6 @@ __all__ = [
     "list_tasks",
     "make_env",
     "resolve_tasks",
+    "select_tasks",
     "task_action_space",
 ]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import csv
 import difflib
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
 from functools import cache
@@ -273,3 +273,30 @@ def resolve_tasks(selectors: list[str]) -> list[TaskSpec]:
             found = [get_task(selector)]
         selected.update((t.name, t) for t in found)
     return list(selected.values())
+
+
+def select_tasks(selectors: Sequence[str], groups: Sequence[str], checkpoint_tasks: Sequence[str] = ()
+                 ) -> tuple[list[TaskSpec], list[str]]:
+    """Tasks to evaluate and notes on the ones skipped: a domain or split keeps the tasks of the
+    checkpoint's groups and those it has statistics for (an imported model's groups have other names);
+    a task named explicitly that is neither is an error."""
+    selectors = [s for selector in selectors for s in selector.split(",") if s]
+    named = {get_task(s).name for s in selectors if s not in DOMAINS and s not in ("train", "test")}
+    known = {spec.name for task in checkpoint_tasks if (spec := find_task(task)) is not None}
+    kept, skipped = [], []
+    for spec in resolve_tasks(selectors):
+        if spec.group in groups or spec.name in known:
+            kept.append(spec)
+        elif spec.name in named:
+            raise UnknownTaskError(
+                f"task {spec.name!r} is in group {spec.group!r}, which the model has no encoder for "
+                f"(it has {', '.join(sorted(groups))})"
+            )
+        else:
+            skipped.append(spec.name)
+    notes = ([f"skipped {len(skipped)} selected task(s) whose group the checkpoint lacks: {', '.join(skipped)}"]
+             if skipped else [])
+    if not kept:
+        raise UnknownTaskError(
+            f"none of {selectors} is a task of the model's groups ({', '.join(sorted(groups))})")
+    return kept, notes

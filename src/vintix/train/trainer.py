@@ -33,6 +33,7 @@ from vintix.interrupt import Interrupted, StopRequest, stop_requests
 from vintix.memory import build_within_memory
 from vintix.model.checkpoint import CheckpointError, load_pretrained
 from vintix.model.model import Vintix, count_parameters, estimated_parameters
+from vintix.tasks import select_tasks
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
     best_score,
@@ -404,6 +405,8 @@ class Trainer:
         self.flops = {g.name: flops_per_token(self.model, g.name, self.window_len) for g in self.data.groups}
         self.resumed_from = resume
         self.select_tasks = config.select_tasks or [t.name for t in self.data.tasks]
+        if scorer is not None and config.select_tasks:  # a bad selection task fails now, not at the first selection
+            select_tasks(config.select_tasks, [group.name for group in self.data.groups])
         self.best_score = best_score(self.out)
 
     def _load_data(self) -> TrainingData:
