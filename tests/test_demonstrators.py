@@ -497,3 +497,27 @@ def test_the_cli_checks_a_users_own_demonstrator_per_episode_and_refuses_one_tha
     refused = CliRunner().invoke(app, ["demonstrator", "goal-blind", "--task", "DarkRoom-v0", "--demonstrator",
                                        "test_demonstrators:call_log"])
     assert refused.exit_code == 2 and "has no act_toward(observations, goals)" in " ".join(refused.output.split())
+
+
+def test_a_meta_rl_tasks_goal_aware_expert_trains_under_its_own_name_and_aims_where_it_is_told(tmp_path):
+    """A meta-RL task's expert observes the hidden parameter: trained (briefly) under the task's own name, it acts on
+    the env's true parameter, aims at any parameter it is given (`act_toward`), and a goal-inferring demonstrator
+    plays it from the rewards alone."""
+    from vintix.demonstrators.posterior import GoalInferringDemonstrator
+    from vintix.demonstrators.scores import history_outcomes
+
+    task = "HalfCheetah-Vel-v5"
+    path = train_demonstrator(task, timesteps=300, out=tmp_path, state_dir=tmp_path / "state", progress_bar=False)
+    assert path == tmp_path / "halfcheetah-vel.safetensors"
+    assert json.loads(path.with_suffix(".json").read_text())["group"] == "halfcheetah-vel"
+    expert = load_demonstrator(task, tmp_path)
+    envs = [make_env(task, seed=seed) for seed in (1, 2)]
+    observations = np.stack([env.reset()[0] for env in envs])
+    goals = np.stack([env.unwrapped.true_goal for env in envs])
+    np.testing.assert_allclose(expert.act(observations, envs), expert.act_toward(observations, goals), atol=1e-6)
+    assert not np.allclose(expert.act_toward(observations, np.zeros((2, 1))),
+                           expert.act_toward(observations, np.full((2, 1), 3.0)))
+    inferring = load_demonstrator(task, tmp_path, behaviour="probe-then-sample")
+    assert isinstance(inferring, GoalInferringDemonstrator)
+    outcomes = history_outcomes(task, inferring, [100, 101], episodes=2)
+    assert outcomes.returns.shape == (2, 2) and np.isfinite(outcomes.returns).all()

@@ -6,8 +6,10 @@ import pytest
 
 from vintix import make_env
 from vintix.demonstrators import load_demonstrator
+from vintix.demonstrators.trained import MissingDemonstratorError
 from vintix.errors import VintixError
 from vintix.tasks import get_task
+from vintix.tasks.meta_mujoco import with_goal_observed
 
 TASKS = ["HalfCheetah-Vel-v5", "HalfCheetah-Dir-v5", "Ant-Dir-v5"]
 
@@ -66,6 +68,24 @@ def test_the_rewards_are_the_literatures():
         [goal * i["x_velocity"] + i["reward_ctrl"] + i["reward_contact"] + i["reward_survive"] for i in infos])
 
 
-def test_there_is_no_demonstrator_yet_and_it_says_so():
-    with pytest.raises(VintixError, match="goal-aware expert .* is still to be trained"):
+def test_a_goal_aware_expert_sees_the_parameter_and_trains_on_a_new_one_each_episode():
+    """What a goal-aware expert trains on: the observation with the parameter appended, the parameter redrawn at
+    every reset (`resample_goal_each_episode`); a task without a hidden parameter refuses the option."""
+    env = with_goal_observed(make_env("HalfCheetah-Vel-v5", seed=4, resample_goal_each_episode=True))
+    seen = []
+    for _ in range(3):
+        obs, _ = env.reset()
+        assert obs.shape == (18,) and obs[-1] == env.unwrapped.true_goal[0]
+        seen.append(obs[-1])
+    assert seen[0] == make_env("HalfCheetah-Vel-v5", seed=4).unwrapped.true_goal[0]  # the seed's first
+    assert len(set(seen)) == 3 and env.observation_space.shape == (18,) and env.observation_space.high[-1] == 3.0
+    with pytest.raises(VintixError, match="'HalfCheetah-v5' has no hidden parameter to redraw"):
+        make_env("HalfCheetah-v5", resample_goal_each_episode=True)
+    with pytest.raises(TypeError, match="hides no parameter"):
+        with_goal_observed(make_env("Reacher-hidden-v5"))
+
+
+def test_a_task_whose_expert_is_not_trained_says_how_to_train_it():
+    with pytest.raises(MissingDemonstratorError, match="'halfcheetah-vel'.*vintix demonstrator train --task "
+                                                       "HalfCheetah-Vel-v5"):
         load_demonstrator("HalfCheetah-Vel-v5")

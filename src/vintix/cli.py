@@ -515,8 +515,8 @@ def demonstrator_goal_blind(
 
 @demonstrator_app.command("histories")
 def demonstrator_histories(
-    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World, toy or Reacher-hidden-v5), or your own "
-                                      "with --demonstrator")],
+    task: Annotated[str, typer.Option(help="a hidden-goal task (Meta-World, toy, Reacher-hidden-v5, meta-RL tasks), "
+                                      "or your own with --demonstrator")],
     behaviour: Annotated[str, typer.Option(help="how a demonstrator that never sees the goal plays: "
                                            "posterior-sampling, probing or probe-then-sample")] = "probe-then-sample",
     seeds: Annotated[int, typer.Option(min=1, help="histories, env seeds first-seed, first-seed + 1, ...")] = 20,
@@ -535,6 +535,9 @@ def demonstrator_histories(
     demonstrator_source: Annotated[str | None, typer.Option(
         "--demonstrator", metavar="MODULE:CALLABLE", help="your own reward-reading demonstrator (called with the task "
         "name, as a recipe's demonstrator: is), for a task of your own; the behaviour options are then unused")] = None,
+    weights: Annotated[Path | None, typer.Option(
+        help="a meta-RL task: its goal-aware expert's trained weights in this folder instead of the shipped ones")
+        ] = None,
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
     import numpy as np
@@ -547,7 +550,7 @@ def demonstrator_histories(
             behaviour = demonstrator_source
             demonstrator = load_demonstrator(task, source=demonstrator_source)
         else:
-            demonstrator = load_demonstrator(task, behaviour=behaviour, probe_margin=probe_margin, aim=aim,
+            demonstrator = load_demonstrator(task, weights, behaviour=behaviour, probe_margin=probe_margin, aim=aim,
                                              lapse_probability=lapse_probability, reward_tolerance=reward_tolerance)
         if not isinstance(demonstrator, GoalInferringDemonstrator):
             inferring = ", ".join(b for b in BEHAVIOURS if b != "expert")
@@ -576,6 +579,7 @@ def demonstrator_histories(
 @demonstrator_app.command("list")
 def demonstrator_list() -> None:
     """Which tasks have a demonstrator, how it was made, and its recorded score."""
+    from vintix.demonstrators.base import expert_name
     from vintix.demonstrators.trained import weights_paths
     from vintix.tasks.scores import read_scores
 
@@ -588,7 +592,7 @@ def demonstrator_list() -> None:
             continue
         kind, training = "scripted (metaworld.policies)", ""
         if spec.domain != "metaworld":
-            _, meta_path = weights_paths(spec.group)
+            _, meta_path = weights_paths(expert_name(spec))
             if meta_path.is_file():
                 meta = json_loads(meta_path.read_text())
                 kind = f"{meta['algorithm']} (shipped)"
@@ -612,6 +616,7 @@ def demonstrator_runs(
                                           "saved policy (0: none; scored as `demonstrator eval` scores)")] = 0,
 ) -> None:
     """Unfinished demonstrator trainings saved in the cache: how far each got, how it does, time left."""
+    from vintix.demonstrators.trained import expert_task
     from vintix.demonstrators.training import best_check, evaluate_unfinished_run, training_runs_dir, unfinished_runs
 
     runs = unfinished_runs()
@@ -640,7 +645,7 @@ def demonstrator_runs(
         if kept is not None:
             console.print(f"{run.group} seed {run.seed}: the policy of its best check since they were kept "
                           f"({_check(kept[1])}) is in {kept[0]}; score it with `vintix demonstrator eval --task "
-                          f"{list_tasks(group=run.group)[0].name} --weights {kept[0]}`")
+                          f"{expert_task(run.group).name} --weights {kept[0]}`")
     console.print(f"saved under {training_runs_dir()}; the recent return is the mean of the last 100 training "
                   "episodes, exploration included (`vintix demonstrator eval` scores a finished one)")
 

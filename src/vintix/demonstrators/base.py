@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 from vintix.errors import MissingDependencyError, VintixError, call_plugin
-from vintix.tasks import get_task
+from vintix.tasks import TaskSpec, get_task
 from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, META_RL_TASKS
 
 
@@ -39,6 +39,18 @@ AIMS = ("hand", "gripper-centre")
 """What a Meta-World scripted expert puts on the goal: the hand, as Meta-World's policies do, or, on the
 tasks of `vintix.tasks.metaworld.GRIPPER_CENTRE_GOAL_TASKS`, the gripper centre whose distance their success
 measures (5 cm of slack around the goal instead of under 1 cm)."""
+
+
+def expert_name(spec: TaskSpec) -> str:
+    """The name a task's trained demonstrator is stored and trained under: its encoder group (one policy serves
+    the group's tasks), or, for a meta-RL task, whose expert observes its hidden parameter, the task's own
+    (``HalfCheetah-Vel-v5``: ``halfcheetah-vel``)."""
+    return spec.name.removesuffix("-v5").lower() if goal_observed(spec) else spec.group
+
+
+def goal_observed(spec: TaskSpec) -> bool:
+    """Whether `spec`'s expert observes its hidden parameter (the meta-RL tasks' goal-aware experts)."""
+    return spec.name in META_RL_TASKS
 
 
 def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "expert",
@@ -95,13 +107,14 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
     if behaviour != "expert":
         from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator, posterior_settings
 
-        if spec.group not in DEFAULT_SETTINGS or weights is not None:
-            raise VintixError(f"{spec.name!r}: {behaviour} needs a hidden-goal task with a scripted expert that can "
-                              f"aim at a given goal (tasks of the groups {', '.join(sorted(DEFAULT_SETTINGS))}), not a "
-                              f"{spec.group} task{' or trained weights' if weights is not None else ''}; "
-                              "use behaviour 'expert'")
-        expert = load_demonstrator(spec.name, aim=aim)
-        settings = posterior_settings(spec.group, behaviour, probe_margin, lapse_probability, reward_tolerance)
+        key = expert_name(spec)
+        goal_aware_weights = weights is not None and goal_observed(spec)  # a meta-RL task's trained expert aims
+        if key not in DEFAULT_SETTINGS or (weights is not None and not goal_aware_weights):
+            raise VintixError(f"{spec.name!r}: {behaviour} needs a hidden-goal task with an expert that can aim at a "
+                              f"given goal (tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.group} "
+                              f"task{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
+        expert = load_demonstrator(spec.name, weights, aim=aim)
+        settings = posterior_settings(key, behaviour, probe_margin, lapse_probability, reward_tolerance)
         return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
     if weights is not None and spec.domain in ("metaworld", "bidexhands"):
         raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "
@@ -114,10 +127,7 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
         from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
 
         return ScriptedPointGoalDemonstrator()
-    if spec.name in META_RL_TASKS:
-        raise VintixError(f"{spec.name!r} has no demonstrator yet: its goal-aware expert (the hidden parameter in "
-                          "its observation) is still to be trained; the plain body's expert would ignore the parameter")
-    if spec.name in HIDDEN_GOAL_MUJOCO_TASKS:
+    if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and not goal_observed(spec):  # Reacher-hidden
         if weights is not None:
             raise VintixError(f"{spec.name!r}'s expert is scripted (inverse kinematics): leave the weights out")
         from vintix.demonstrators.scripted import ScriptedReacherDemonstrator

@@ -142,28 +142,38 @@ def search_order(candidates: np.ndarray, start: np.ndarray) -> np.ndarray:
 # Per encoder group of hidden-goal tasks: Meta-World rewards lie in [0, 10], the toy task's in [0, 1];
 # the hidden Reacher's give minus the fingertip's distance to the target (m), exactly (its control cost is
 # the action's, which the reward under each candidate includes).
+# The meta-RL tasks (keyed by their goal-aware experts' names, `expert_name`) pay exactly the reward under each
+# candidate too; a direction is -1 or +1, so their candidates are never jittered off those two.
 DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(),
                     "point-goal": PosteriorSettings(reward_tolerance=0.05, update_every=1),
-                    "mujoco-reacher-hidden": PosteriorSettings(reward_tolerance=0.005, update_every=1)}
+                    "mujoco-reacher-hidden": PosteriorSettings(reward_tolerance=0.005, update_every=1),
+                    "halfcheetah-vel": PosteriorSettings(reward_tolerance=0.05, update_every=1),
+                    "halfcheetah-dir": PosteriorSettings(reward_tolerance=0.05, update_every=1, jitter=0.0,
+                                                         min_jitter=0.0),
+                    "ant-dir": PosteriorSettings(reward_tolerance=0.05, update_every=1, jitter=0.0, min_jitter=0.0)}
 
 # Steps at each probed corner, per group, so that the probe fills the first episode: Meta-World's 3-D
 # goal boxes have 4 corners to probe (a tetrahedron) in a 100-step episode, the toy's range 2 ends in 10,
-# the hidden Reacher's square 2 opposite corners (beyond the arm's reach: it sweeps at full stretch) in 50.
-PROBE_STEPS = {"metaworld": 25, "point-goal": 5, "mujoco-reacher-hidden": 25}
+# the hidden Reacher's square 2 opposite corners (beyond the arm's reach: it sweeps at full stretch) in 50, a
+# meta-RL task's range its 2 ends in 200.
+PROBE_STEPS = {"metaworld": 25, "point-goal": 5, "mujoco-reacher-hidden": 25, "halfcheetah-vel": 100,
+               "halfcheetah-dir": 100, "ant-dir": 100}
 
 # The likelihood's tolerance of 'probe-then-sample', per group: 8 times the default, so that the episodes
 # after the probe miss by a few centimetres on Meta-World reach (median end distance 4.7 cm in the second
 # episode, 2.8 cm in the eighth, 20 goals) instead of 1.5-2 cm: near the errors a model makes, which its
 # later episodes must correct from their rewards rather than repeat.
-SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "point-goal": 0.4, "mujoco-reacher-hidden": 0.04}
+SAMPLE_AFTER_PROBE_TOLERANCE = {"metaworld": 4.0, "point-goal": 0.4, "mujoco-reacher-hidden": 0.04,
+                                "halfcheetah-vel": 0.4, "halfcheetah-dir": 0.4, "ant-dir": 0.4}
 
 
 def posterior_settings(group: str, behaviour: str, probe_margin: float = 0.0,
                        lapse_probability: float = 0.0, reward_tolerance: float = 0.0) -> PosteriorSettings:
     """The settings of `behaviour` ('posterior-sampling', 'posterior-search', 'probing' or 'probe-then-sample') on
-    hidden-goal tasks of encoder group `group`, the probe's corners `probe_margin` outside the goal box
-    (`PosteriorSettings.probe_margin`), with 'probe-then-sample' a lapse in an episode after the first aimed one at
-    `lapse_probability`, and the likelihood's `reward_tolerance` instead of the behaviour's own where it is not 0."""
+    hidden-goal tasks of encoder group `group` (a meta-RL task: its expert's name), the probe's corners
+    `probe_margin` outside the goal box (`PosteriorSettings.probe_margin`), with 'probe-then-sample' a lapse in an
+    episode after the first aimed one at `lapse_probability`, and the likelihood's `reward_tolerance` instead of the
+    behaviour's own where it is not 0."""
     settings = DEFAULT_SETTINGS[group]
     if behaviour == "posterior-search":  # every step weighed: a step that is not rules nothing out
         settings = replace(settings, search=True, update_every=1)

@@ -6,7 +6,11 @@ A demonstrator is stored per encoder group as ``weights/<group>.safetensors`` (t
 `VecNormalize`) and ``weights/<group>.json`` (algorithm, policy architecture, how it was trained and
 with which command). Nothing is pickled: the SB3 policy is rebuilt from the JSON and the env's spaces,
 then the tensors are loaded into it. One file per group rather than per task because one Industrial
-Benchmark policy serves all 21 setpoints (the setpoint is part of its observation).
+Benchmark policy serves all 21 setpoints (the setpoint is part of its observation). The meta-RL tasks
+(HalfCheetah-Vel, HalfCheetah-Dir, Ant-Dir) share their bodies' groups but each has an expert of its own, stored
+under the task's name (`expert_name`): a goal-aware one, which observes the hidden parameter appended to the
+observation (`vintix.tasks.meta_mujoco.with_goal_observed`) and can aim at any parameter it is given
+(`act_toward`), as a goal-inferring demonstrator needs.
 """
 
 from __future__ import annotations
@@ -31,11 +35,25 @@ from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.sac.policies import SACPolicy
 
 from vintix.atomic import atomic_save_tensors, atomic_write_text
+from vintix.demonstrators.base import expert_name, goal_observed
 from vintix.errors import VintixError, json_loads
-from vintix.tasks import TaskSpec, action_box, make_env
+from vintix.tasks import TaskSpec, action_box, get_task, list_tasks, make_env
+from vintix.tasks.meta_mujoco import with_goal_observed
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"PPO": PPO, "SAC": SAC}
 OBS_MEAN, OBS_VAR = "obs_rms.mean", "obs_rms.var"
+
+
+def expert_task(name: str) -> TaskSpec:
+    """The first task whose demonstrator is `name` (`expert_name`), the one its training scores it on."""
+    return next(spec for spec in list_tasks() if expert_name(spec) == name)
+
+
+def expert_env(task: str, observation_dims: int = 0, **options: Any) -> gym.Env:
+    """`task`'s env as its trained expert sees it: the first `observation_dims` dimensions of its observation (0:
+    all), and a meta-RL task's hidden parameter after them."""
+    env = first_observations(make_env(task, **options), observation_dims)
+    return with_goal_observed(env) if goal_observed(get_task(task)) else env
 
 
 def shipped_weights_dir() -> Path:
@@ -118,18 +136,18 @@ class TrainedDemonstrator:
     """A trained SB3 policy acting deterministically on a batch of observations."""
 
     def __init__(self, spec: TaskSpec, directory: Path | None = None) -> None:
-        tensors_path, meta_path = weights_paths(spec.group, directory)
+        tensors_path, meta_path = weights_paths(expert_name(spec), directory)
         if not tensors_path.is_file() or not meta_path.is_file():
             raise MissingDemonstratorError(
-                f"no trained demonstrator for {spec.name!r} (group {spec.group!r}) in {tensors_path.parent}: "
+                f"no trained demonstrator for {spec.name!r} ({expert_name(spec)!r}) in {tensors_path.parent}: "
                 f"train one with `vintix demonstrator train --task {spec.name}` (see demonstrators/training.py "
                 "for its budget), or collect a task that has one (`vintix demonstrator list`)."
             )
         self.metadata, tensors = _read_weights(tensors_path, meta_path)
-        env = make_env(spec.name)
         self.observation_dims = int(self.metadata.get("observation_dims", 0))
-        observation_space = observation_view(env.observation_space, self.observation_dims)
-        action_space = env.action_space
+        self.goal_observed = goal_observed(spec)
+        env = expert_env(spec.name, self.observation_dims)
+        observation_space, action_space = env.observation_space, env.action_space
         env.close()
         policy_class = ALGORITHMS[self.metadata["algorithm"]].policy_aliases["MlpPolicy"]
         try:  # an edited or foreign file: a keyword the policy does not take, a value of the wrong kind
@@ -153,11 +171,15 @@ class TrainedDemonstrator:
         modules = deterministic_actor(self.policy)
         self._mlp = None if modules is None else NumpyMlp.from_modules(modules)
 
-    def policy_input(self, observations: np.ndarray) -> np.ndarray:
+    def policy_input(self, observations: np.ndarray, goals: np.ndarray | None = None) -> np.ndarray:
         """What the policy sees of `observations`: their first `observation_dims` dimensions if it was
-        trained on those only, scaled as `VecNormalize.normalize_obs` did in training (saved statistics)."""
+        trained on those only, then a goal-aware expert's `goals` [n, goal_dim], scaled as
+        `VecNormalize.normalize_obs` did in training (saved statistics)."""
         if self.observation_dims:
             observations = observations[:, :self.observation_dims]
+        if self.goal_observed:
+            assert goals is not None, "a goal-aware expert acts on a goal"
+            observations = np.concatenate([observations, goals], axis=1)
         if self.obs_mean is None or self.obs_var is None:  # both or neither (checked on loading)
             return observations
         settings = self.metadata["obs_normalization"]
@@ -168,11 +190,22 @@ class TrainedDemonstrator:
         """What ``policy.predict(..., deterministic=True)`` returns (up to float32 rounding), computed by
         `NumpyMlp` from the policy's own weights: predict re-sets the training mode of every module and
         builds a distribution object on each call, and torch's per-op dispatch alone took longer than
-        the simulator's step in a collection loop."""
+        the simulator's step in a collection loop. A goal-aware expert reads each env's hidden parameter."""
+        goals = np.stack([env.unwrapped.true_goal for env in envs]) if self.goal_observed else None  # type: ignore[attr-defined]
+        return self._act(self.policy_input(np.asarray(observations), goals))
+
+    def act_toward(self, observations: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """A goal-aware expert's actions had the hidden parameter of env i been ``goals[i]`` (a goal-inferring
+        demonstrator's guesses)."""
+        if not self.goal_observed:
+            raise VintixError(f"{self.metadata['group']!r}'s expert observes no hidden goal to aim at")
+        return self._act(self.policy_input(np.asarray(observations), np.asarray(goals, dtype=np.float64)))
+
+    def _act(self, inputs: np.ndarray) -> np.ndarray:
         if self._mlp is None:
-            actions, _ = self.policy.predict(self.policy_input(np.asarray(observations)), deterministic=True)
+            actions, _ = self.policy.predict(inputs, deterministic=True)
             return actions
-        actions = self._mlp(np.asarray(self.policy_input(np.asarray(observations)), dtype=np.float32))
+        actions = self._mlp(np.asarray(inputs, dtype=np.float32))
         if self.policy.squash_output:  # tanh-squashed policies act in [-1, 1]
             return self.policy.unscale_action(actions)
         space = action_box(self.policy.action_space)

@@ -57,12 +57,14 @@ from vintix.demonstrators.scores import episode_returns
 from vintix.demonstrators.trained import (
     ALGORITHMS,
     TrainedDemonstrator,
-    first_observations,
+    expert_env,
+    expert_name,
+    expert_task,
     save_trained_policy,
 )
 from vintix.errors import VintixError, json_loads
 from vintix.interrupt import Interrupted, sigterm_as_ctrl_c
-from vintix.tasks import get_task, list_tasks, make_env
+from vintix.tasks import get_task, list_tasks
 from vintix.tasks.scores import reference
 from vintix.userdirs import user_cache_dir
 
@@ -130,6 +132,9 @@ _SAMPLE_FACTORY_PPO = DemonstratorRecipe(
     normalize_observations=True, normalize_rewards=True, n_envs=64, learning_rate_decay=True, stop_at_score=1.0,
 )
 
+_EVERY_EPISODE = {"resample_goal_each_episode": True}
+"""A meta-RL task's hidden parameter drawn anew every episode, as its goal-aware expert trains."""
+
 RECIPES: dict[str, DemonstratorRecipe] = {
     "mujoco-invertedpendulum": DemonstratorRecipe("PPO", 50_000),
     "mujoco-inverteddoublependulum": DemonstratorRecipe("SAC", 50_000),
@@ -151,6 +156,12 @@ RECIPES: dict[str, DemonstratorRecipe] = {
     # CPU-hours). Sample Factory's PPO on the 27 does better (docs/demonstrators.md).
     "mujoco-ant": replace(_SAMPLE_FACTORY_PPO, observation_dims=27),
     "mujoco-humanoidstandup": _SAMPLE_FACTORY_PPO,
+    # The meta-RL tasks' goal-aware experts (`expert_name`): the parameter in their observation, redrawn every
+    # episode in training, so one policy runs at any target velocity or in either direction. Their bodies'
+    # recipes; no target score (the paper has no reference for these tasks).
+    "halfcheetah-vel": DemonstratorRecipe("SAC", 200_000, {"learning_starts": 10_000}, env_options=_EVERY_EPISODE),
+    "halfcheetah-dir": DemonstratorRecipe("SAC", 300_000, {"learning_starts": 10_000}, env_options=_EVERY_EPISODE),
+    "ant-dir": replace(_SAMPLE_FACTORY_PPO, observation_dims=27, env_options=_EVERY_EPISODE, stop_at_score=None),
     "industrial_benchmark": DemonstratorRecipe(
         "PPO", 1_000_000,
         {"gamma": 0.97, "n_steps": 250, "batch_size": 50, "target_kl": 0.2, "normalize_advantage": True},
@@ -160,17 +171,17 @@ RECIPES: dict[str, DemonstratorRecipe] = {
 
 
 def recipe_for(task: str) -> DemonstratorRecipe:
-    """The training recipe of a task's group; Meta-World and Bi-DexHands have none."""
+    """The training recipe of a task's demonstrator (`expert_name`); Meta-World and Bi-DexHands have none."""
     spec = get_task(task)
-    if spec.group not in RECIPES:
+    if expert_name(spec) not in RECIPES:
         reason = ("its demonstrators are metaworld's scripted policies, nothing to train"
                   if spec.domain == "metaworld" else "no recipe for this domain")
         raise VintixError(f"cannot train a demonstrator for {spec.name!r}: {reason}")
-    return RECIPES[spec.group]
+    return RECIPES[expert_name(spec)]
 
 
 def _monitored_env(task: str, options: dict[str, Any], observation_dims: int) -> gym.Env:
-    return Monitor(first_observations(make_env(task, **options), observation_dims))
+    return Monitor(expert_env(task, observation_dims, **options))
 
 
 def training_runs_dir() -> Path:
@@ -349,7 +360,7 @@ def score_as_shipped(model: BaseAlgorithm, vec_normalize: VecNormalize | None, g
     """(task, returns) of `episodes` deterministic episodes of `model` on the first task of `group`: its
     acting weights are exported as they would ship, then scored as `vintix demonstrator eval` scores a
     shipped demonstrator."""
-    spec = list_tasks(group=group)[0]
+    spec = expert_task(group)
     with tempfile.TemporaryDirectory() as exported:
         save_trained_policy(model, vec_normalize, group, Path(exported), {"observation_dims": observation_dims})
         demonstrator = TrainedDemonstrator(spec, Path(exported))
@@ -382,7 +393,7 @@ def evaluate_unfinished_run(run: UnfinishedRun, episodes: int, seed: int = 0) ->
     model = ALGORITHMS[run.algorithm].load(state / "model.zip", device="cpu")
     vec_normalize = None
     if (state / "vecnormalize.pkl").is_file():
-        spec = list_tasks(group=run.group)[0]
+        spec = expert_task(run.group)
         venv = DummyVecEnv([partial(_monitored_env, spec.name, {}, run.observation_dims)])
         vec_normalize = VecNormalize.load(str(state / "vecnormalize.pkl"), venv)
         venv.close()
@@ -519,8 +530,9 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     recipe = recipe or recipe_for(task)
     budget = timesteps or recipe.timesteps
     tasks = recipe.train_tasks or (spec.name,)
-    plan = _plan(spec.group, budget, seed, recipe)
-    state_dir = state_dir or default_state_dir(spec.group, seed)
+    expert = expert_name(spec)
+    plan = _plan(expert, budget, seed, recipe)
+    state_dir = state_dir or default_state_dir(expert, seed)
     found = latest_training_state(state_dir, plan)
     venv = DummyVecEnv([partial(_monitored_env, name, recipe.env_options, recipe.observation_dims)
                         for name in tasks for _ in range(recipe.n_envs)])
@@ -537,12 +549,12 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     callbacks: list[BaseCallback] = [_SaveEvery(save_state, save_minutes * 60.0)]
     stop = None
     if recipe.stop_at_score is not None:
-        score = partial(score_as_shipped, model, vec_normalize, spec.group, recipe.observation_dims,
+        score = partial(score_as_shipped, model, vec_normalize, expert, recipe.observation_dims,
                         SCORE_EPISODES, SCORE_SEED)
         if found is None:  # a fresh run: a policy kept by an earlier one in this folder is not its own
             _delete_folders(state_dir, BEST_CHECK_PREFIX)
         kept = best_check(state_dir)
-        keep = partial(keep_best_check, model, vec_normalize, spec.group, recipe.observation_dims, state_dir)
+        keep = partial(keep_best_check, model, vec_normalize, expert, recipe.observation_dims, state_dir)
         stop = _StopAtScore(score, max(1, round(recipe.timesteps * SCORE_EVERY)), recipe.stop_at_score, report,
                             score_checks, keep, kept[1]["normalized"] if kept else -np.inf)
         callbacks.append(stop)
@@ -564,7 +576,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
     command = f"vintix demonstrator train --task {spec.name} --seed {seed}"
     if timesteps:
         command += f" --timesteps {timesteps}"
-    info = {"group": spec.group, "train_tasks": list(tasks), "timesteps": model.num_timesteps, "seed": seed,
+    info = {"group": expert, "train_tasks": list(tasks), "timesteps": model.num_timesteps, "seed": seed,
             "train_seconds": round(seconds, 1), "hyperparameters": recipe.hyperparameters,
             "env_options": recipe.env_options, "command": command}
     for name in ("observation_dims", "n_envs", "normalize_rewards", "learning_rate_decay"):  # those a recipe changed
@@ -583,7 +595,7 @@ def train_demonstrator(task: str, timesteps: int | None = None, seed: int = 0, o
         info["short_of_target"] = {"target": recipe.stop_at_score, "budget": budget,
                                    **({"state": str(state_dir)} if goes_on else {}),
                                    **({"best_check": {"folder": str(kept[0]), **kept[1]}} if kept else {})}
-    path = save_trained_policy(model, vec_normalize, spec.group, out or trained_weights_dir(), info)
+    path = save_trained_policy(model, vec_normalize, expert, out or trained_weights_dir(), info)
     if goes_on:
         save_state()  # a larger budget (`--timesteps`) goes on from here rather than from scratch
     else:

@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 from vintix.errors import MissingDependencyError, UnsupportedOptionError, VintixError
-from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, TaskSpec, builtin_tasks, get_task
+from vintix.tasks.registry import HIDDEN_GOAL_MUJOCO_TASKS, META_RL_TASKS, TaskSpec, builtin_tasks, get_task
 
 NAMESPACE = "vintix"
 ENV_CLASSES = {"HalfCheetah-Vel-v5": "HalfCheetahVelEnv", "HalfCheetah-Dir-v5": "HalfCheetahDirEnv",
@@ -81,11 +81,17 @@ class SeedFirstReset(gym.Wrapper):
 
 
 def _make_mujoco(spec: TaskSpec, seed: int | None, viscosity: float | None = None,
-                 gravity_scale: float | None = None, render_mode: str | None = None) -> gym.Env:
+                 gravity_scale: float | None = None, render_mode: str | None = None,
+                 resample_goal_each_episode: bool = False) -> gym.Env:
     from vintix.tasks.mujoco import make_mujoco_env
 
     # A hidden-goal task draws its hidden target from the seed it is made with, as Meta-World's do.
-    hidden_goal = {"seed": seed} if spec.name in HIDDEN_GOAL_MUJOCO_TASKS else {}
+    hidden_goal: dict[str, Any] = {"seed": seed} if spec.name in HIDDEN_GOAL_MUJOCO_TASKS else {}
+    if resample_goal_each_episode:
+        if spec.name not in META_RL_TASKS:
+            raise UnsupportedOptionError(f"{spec.name!r} has no hidden parameter to redraw each episode; "
+                                         f"resample_goal_each_episode is for {', '.join(META_RL_TASKS)}")
+        hidden_goal["resample_goal_each_episode"] = True
     return make_mujoco_env(gymnasium_id(spec), viscosity=viscosity, gravity_scale=gravity_scale,
                            render_mode=render_mode, **hidden_goal)
 

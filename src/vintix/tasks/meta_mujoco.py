@@ -45,9 +45,10 @@ class HiddenParameterLocomotion(gym.Env):
     body_kwargs: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, seed: int | None = None, episode_length: int = EPISODE_STEPS,
-                 render_mode: str | None = None) -> None:
+                 resample_goal_each_episode: bool = False, render_mode: str | None = None) -> None:
         self._body = self.body(render_mode=render_mode, **self.body_kwargs)
         self.episode_length = episode_length
+        self.resample_goal_each_episode = resample_goal_each_episode
         self.render_mode = render_mode
         self.observation_space = self._body.observation_space
         self.action_space = self._body.action_space
@@ -64,10 +65,13 @@ class HiddenParameterLocomotion(gym.Env):
         return self._body.model
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        """`seed` draws the parameter anew, exactly as a new env with that seed would; otherwise it stays."""
+        """`seed` draws the parameter anew, exactly as a new env with that seed would; otherwise it stays (or, with
+        `resample_goal_each_episode`, as a goal-aware expert trains, is drawn from the env's own generator)."""
         super().reset(seed=seed)
         if seed is not None:
             self._parameter = self._draw(np.random.default_rng(seed))
+        elif self.resample_goal_each_episode:
+            self._parameter = self._draw(self.np_random)
         obs, info = self._body.reset(seed=int(self.np_random.integers(2**31 - 1)))
         self._steps = 0
         return obs, {}
@@ -103,6 +107,18 @@ class HiddenParameterLocomotion(gym.Env):
 
     def close(self) -> None:
         self._body.close()
+
+
+def with_goal_observed(env: gym.Env) -> gym.Env:
+    """`env` (a `HiddenParameterLocomotion` under any wrappers) observed with its hidden parameter appended: what
+    a goal-aware expert trains and acts on, never what a model sees."""
+    inner = env.unwrapped
+    if not isinstance(inner, HiddenParameterLocomotion):
+        raise TypeError(f"{inner} hides no parameter: only the meta-RL locomotion tasks have one to observe")
+    space, (low, high) = env.observation_space, inner.goal_box()
+    assert isinstance(space, gym.spaces.Box)  # the MuJoCo bodies' observations
+    observed = gym.spaces.Box(np.append(space.low, low), np.append(space.high, high), dtype=np.float64)
+    return gym.wrappers.TransformObservation(env, lambda obs: np.append(obs, inner.true_goal), observed)
 
 
 class HalfCheetahVelEnv(HiddenParameterLocomotion):
