@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import json
-import time
 
 import numpy as np
 import pytest
@@ -140,14 +139,17 @@ def test_ml1_success_is_the_mean_over_goals_of_the_scored_episodes():
     assert summary["low"] <= summary["success"] <= summary["high"]
 
 
-def test_an_unwritable_out_is_named_before_the_run_not_after(tmp_path):
+def test_an_unwritable_out_is_named_before_the_run_not_after(tmp_path, monkeypatch):
     save_pretrained(tiny_model(), tmp_path / "ckpt")
     (tmp_path / "a-file").write_text("x")
-    started = time.perf_counter()
+
+    def no_env_yet(*args, **kwargs):
+        raise AssertionError("the evaluation made an env before it checked where its results go")
+
+    monkeypatch.setattr("vintix.evaluate.run.make_env", no_env_yet)  # a tripwire: the check comes first
     result = CliRunner().invoke(app, ["eval", "--checkpoint", str(tmp_path / "ckpt"), "--tasks", "reach-v3",
                                       "--shots", "50", "--out", str(tmp_path / "a-file" / "results")])
     assert result.exit_code == 2 and "a-file is a file, not a directory" in " ".join(result.output.split())
-    assert time.perf_counter() - started < 10  # 50 shots of reach-v3 would take far longer
 
 
 def test_eval_config_checks_types_and_ranges_in_python_too():
