@@ -10,8 +10,16 @@ cell darkroom-ad darkroom-ad DarkRoom-heldout-v0
 cell darkroom-adeps darkroom DarkRoom-heldout-v0
 cell darkroom-search darkroom-search DarkRoom-heldout-v0      # DART (the shipped darkroom); the 15- and 40-episode
                                                               # variants: the recipe's earlier versions (README)
-cell keytodoor-search keytodoor-search KeyToDoor-heldout-v0
+cell keytodoor-search keytodoor-search KeyToDoor-heldout-v0  # DART; keytodoor-search-first/: the recipe's first version
+cell keytodoor-ad keytodoor-ad KeyToDoor-heldout-v0
+cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
+cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
+cell bandit-adeps bandit BernoulliBandit-v0
 cell bandit-posterior bandit BernoulliBandit-v0
+# Dark Room Hard: the Dark Room configs, selecting their checkpoints on the hard room
+cell darkroomhard-search darkroom-search DarkRoomHard-heldout-v0
+TRAIN_ARGS="--set select_tasks=[DarkRoomHard-v0]" cell darkroomhard-ad darkroom-ad DarkRoomHard-heldout-v0
+TRAIN_ARGS="--set select_tasks=[DarkRoomHard-v0]" cell darkroomhard-adeps darkroom DarkRoomHard-heldout-v0
 # Greedy actions (greedy/ here): the same checkpoints, argmax instead of a draw.
 for source in darkroom-ad darkroom-adeps darkroom-search; do
   vintix eval --checkpoint "$W/$source/run" --tasks DarkRoom-heldout-v0 --shots 40 --seeds 16 --first-seed 100 --greedy \
@@ -19,6 +27,4 @@ for source in darkroom-ad darkroom-adeps darkroom-search; do
 done
 vintix eval --checkpoint "$W/darkroom-search/run" --tasks DarkRoom-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
   --greedy --reward-input zero --out "$W/greedy/darkroom-search-zero"
-vintix eval --checkpoint "$W/keytodoor-search/run" --tasks KeyToDoor-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
-  --greedy --out "$W/greedy/keytodoor-search"
-python scripts/bandit_baselines.py "$W/bandit-posterior/results/true"
+python scripts/bandit_baselines.py "$W"/bandit-{ad,posterior}/results/{true,zero,shuffled}
