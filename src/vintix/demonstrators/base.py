@@ -108,8 +108,8 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
         from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator, posterior_settings
 
         key = expert_name(spec)
-        goal_aware_weights = weights is not None and goal_observed(spec)  # a meta-RL task's trained expert aims
-        if key not in DEFAULT_SETTINGS or (weights is not None and not goal_aware_weights):
+        # Trained weights aim only where the expert observes the goal (a meta-RL task's goal-aware expert).
+        if key not in DEFAULT_SETTINGS or (weights is not None and not goal_observed(spec)):
             raise VintixError(f"{spec.name!r}: {behaviour} needs a hidden-goal task with an expert that can aim at a "
                               f"given goal (tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.group} "
                               f"task{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
