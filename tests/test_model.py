@@ -19,6 +19,7 @@ from vintix.model import (
     count_parameters,
     preset,
 )
+from vintix.model.model import fourier_features
 
 GROUPS = [GroupSpec("A", obs_dim=5, act_dim=2), GroupSpec("B", obs_dim=7, act_dim=3)]
 TASKS = [
@@ -279,3 +280,28 @@ def test_a_gaussian_policy_predicts_a_mean_and_a_bounded_log_std():
 def test_unknown_policy_or_reward_encoder_is_a_named_error(field, value):
     with pytest.raises(ValueError, match=field):
         tiny_config(**{field: value})
+
+
+# --- observation encoder ------------------------------------------------------------------------
+
+
+def test_fourier_features_give_neighbouring_grid_cells_codes_as_far_apart_as_distant_ones():
+    cells = (torch.arange(9.0) - 4) / 2.6  # a 9-cell row, z-scored as a task's statistics would
+    raw = cells.unsqueeze(-1)
+    codes = fourier_features(raw, 4)
+    assert codes.shape == (9, 1 + 2 * 4) and torch.equal(codes[:, :1], raw)  # the raw channel comes first
+    neighbours = (codes[1:] - codes[:-1]).norm(dim=-1)
+    assert (raw[1:] - raw[:-1]).norm(dim=-1).max() < 0.4  # raw: neighbours sit at a tenth of the row's span
+    assert neighbours.min() > 1.0  # coded: each neighbour is more than the row's whole raw span away
+    assert torch.equal(fourier_features(raw, 0), raw)
+
+
+def test_a_model_with_fourier_bands_feeds_them_to_its_observation_encoder_and_counts_them():
+    model = make_model(obs_fourier_bands=3)
+    assert model.encoders["A"].obs[0].in_features == 5 * (1 + 2 * 3)
+    out = model(**make_batch("A", "a1", model))
+    assert out.shape == (2, 12, 2) and torch.isfinite(out).all()
+    plain = count_parameters(make_model())
+    assert count_parameters(model) - plain == (5 + 7) * 2 * 3 * 14  # two groups' first encoder layers grow
+    with pytest.raises(ValueError, match="obs_fourier_bands"):
+        tiny_config(obs_fourier_bands=-1)

@@ -51,6 +51,9 @@ MAX_LAYERS = 256
 """The most transformer (or head) layers a config may ask for: the paper's model has 20, and 25,000 layers of a
 tiny width fit in memory yet take minutes to build in silence."""
 
+MAX_FOURIER_BANDS = 12
+"""The most Fourier bands a config may ask for (`ModelConfig.obs_fourier_bands`)."""
+
 
 @dataclass
 class ModelConfig:
@@ -104,6 +107,9 @@ class ModelConfig:
     reward_encoder: str = "linear"
     """'linear': Linear(1, rew_emb_dim) + activation, as in the official release; 'mlp': two layers, the
     first with biases spread over the reward range, so each unit bends at another reward value"""
+    obs_fourier_bands: int = 0
+    """also feed the observation encoder sin and cos of each normalized channel times pi * 2**k, k < this
+    (`fourier_features`), so that nearby values (neighbouring grid cells) get distant codes; 0: raw only"""
 
     @property
     def pads_reward(self) -> bool:
@@ -121,14 +127,17 @@ class ModelConfig:
         sizes = {"n_layers": self.n_layers, "n_heads": self.n_heads, "obs_emb_dim": self.obs_emb_dim,
                  "act_emb_dim": self.act_emb_dim, "rew_emb_dim": self.rew_emb_dim, "mlp_dim": self.mlp_dim,
                  "context_len": self.context_len}
-        small = [f"{k}={v}" for k, v in sizes.items() if v < 1] + ([f"head_layers={self.head_layers}"]
-                                                                  if self.head_layers < 0 else [])
+        counts = {"head_layers": self.head_layers, "obs_fourier_bands": self.obs_fourier_bands}
+        small = [f"{k}={v}" for k, v in sizes.items() if v < 1] + [f"{k}={v}" for k, v in counts.items() if v < 0]
         divisor_ok = self.std_floor >= 0 and self.std_epsilon >= 0 and self.std_floor + self.std_epsilon > 0
         if small or not 0 <= self.dropout < 1 or not divisor_ok:
             raise ModelConfigError(
-                "sizes must be >= 1 (head_layers >= 0), dropout in [0, 1), std_floor and std_epsilon >= 0 and not "
-                f"both 0; got {', '.join(small) or f'dropout={self.dropout}, std_floor={self.std_floor}'}"
-                f"{'' if small else f', std_epsilon={self.std_epsilon}'}")
+                "sizes must be >= 1 (head_layers, obs_fourier_bands >= 0), dropout in [0, 1), std_floor and "
+                f"std_epsilon >= 0 and not both 0; got {', '.join(small) or f'dropout={self.dropout}, '}"
+                f"{'' if small else f'std_floor={self.std_floor}, std_epsilon={self.std_epsilon}'}")
+        if self.obs_fourier_bands > MAX_FOURIER_BANDS:
+            raise ModelConfigError(f"obs_fourier_bands={self.obs_fourier_bands}: at most {MAX_FOURIER_BANDS}; past "
+                                   "that a float32 observation has no digits left for the fastest band to read")
         if self.n_layers > MAX_LAYERS or self.head_layers > MAX_LAYERS:
             raise ModelConfigError(f"n_layers={self.n_layers}, head_layers={self.head_layers}: at most {MAX_LAYERS} "
                                    "each (the paper's model has 20); more is a typo, and would take minutes to build")
@@ -337,6 +346,14 @@ class Block(nn.Module):
 # onto these modules).
 
 
+def fourier_features(x: torch.Tensor, bands: int) -> torch.Tensor:
+    """``x`` followed by sin and cos of ``pi * 2**k * x`` for each channel and k < `bands` (``x`` alone if 0)."""
+    if bands == 0:
+        return x
+    angles = x.unsqueeze(-1) * (math.pi * 2.0 ** torch.arange(bands, dtype=x.dtype, device=x.device))
+    return torch.cat([x, angles.sin().flatten(-2), angles.cos().flatten(-2)], dim=-1)
+
+
 def _encoder_mlp(in_dim: int, out_dim: int, activation: str) -> nn.Sequential:
     # The LayerNorms keep the observation and action parts of a token at unit scale whatever the
     # raw channel scales of a group are.
@@ -352,7 +369,8 @@ class GroupEncoder(nn.Module):
 
     def __init__(self, spec: GroupSpec, config: ModelConfig):
         super().__init__()
-        self.obs = _encoder_mlp(spec.obs_dim, config.obs_emb_dim, config.activation)
+        self.fourier_bands = config.obs_fourier_bands
+        self.obs = _encoder_mlp(spec.obs_dim * (1 + 2 * self.fourier_bands), config.obs_emb_dim, config.activation)
         self.act = _encoder_mlp(spec.act_dim, config.act_emb_dim, config.activation)
         # No reward encoder at all under mask_reward: parameters that never get a gradient would
         # make DDP fail.
@@ -368,7 +386,7 @@ class GroupEncoder(nn.Module):
         episode_start: torch.Tensor, act_pad: torch.Tensor, rew_pad: torch.Tensor | None,
     ) -> torch.Tensor:
         start = episode_start.unsqueeze(-1)
-        e_obs = self.obs(obs)
+        e_obs = self.obs(fourier_features(obs, self.fourier_bands))
         e_act = torch.where(start, act_pad, self.act(prev_action))
         if self.rew is None:
             assert rew_pad is not None  # mask_reward pads every token
@@ -672,8 +690,9 @@ def estimated_parameters(config: ModelConfig, groups: Sequence[GroupSpec]) -> in
     built, since building a model of 10^9 layers, even on torch's meta device, never ends."""
     d = config.d_model
     per_block = 4 * d * d + 2 * d * config.mlp_dim  # attention's qkv and projection, the MLP's two layers
+    obs_inputs = 1 + 2 * config.obs_fourier_bands  # per observation channel (`fourier_features`)
     per_group = sum(
-        spec.obs_dim * config.obs_emb_dim + config.obs_emb_dim ** 2 + spec.act_dim * config.act_emb_dim
+        spec.obs_dim * obs_inputs * config.obs_emb_dim + config.obs_emb_dim ** 2 + spec.act_dim * config.act_emb_dim
         + config.act_emb_dim ** 2 + config.head_layers * d * d + d * spec.act_dim for spec in groups)
     return config.n_layers * per_block + per_group
 
