@@ -9,7 +9,13 @@ import pytest
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.data import LearningHistory
 from vintix.demonstrators import PosteriorSamplingDemonstrator, load_demonstrator
-from vintix.demonstrators.goal_blind import goal_blind_baseline, observation_spread_across_goals, read_goal_blind
+from vintix.demonstrators.goal_blind import (
+    goal_blind_baseline,
+    goal_blind_path,
+    observation_spread_across_goals,
+    read_goal_blind,
+    write_goal_blind,
+)
 from vintix.demonstrators.posterior import FumblingExpert
 from vintix.demonstrators.scores import episode_outcomes, history_outcomes
 from vintix.errors import VintixError
@@ -147,6 +153,20 @@ def test_goal_blind_baseline_separates_tasks_that_hide_their_goal():
     assert toy.true_goal_success == 1.0 and toy.goal_blind_success <= 0.4
     button = goal_blind_baseline("button-press-v3", seeds=3)  # the goal follows from the observed button
     assert button.hidden_information == 0.0
+
+
+def test_a_blind_expert_can_aim_at_the_best_constant_goal_and_rows_keep_a_random_policys_return(tmp_path):
+    best = goal_blind_baseline("point-goal-v1", seeds=10, blind_aim="best")
+    assert best.blind_aim == "best" and best.goal_blind_success <= 0.4 < best.true_goal_success
+    assert best.random_return < best.true_goal_return and best.hidden_return > 0.5  # a blind aim earns no more
+    written = write_goal_blind([best], tmp_path / "goal-blind.csv")
+    assert read_goal_blind(written)["point-goal-v1"] == best
+    old = tmp_path / "old.csv"  # a table measured before the blind_aim and random_return columns
+    old.write_text(goal_blind_path().read_text())
+    row = read_goal_blind(old)["reach-v3"]
+    assert row.blind_aim == "mean" and np.isnan(row.random_return)
+    with pytest.raises(VintixError, match="blind aim 'median'"):
+        goal_blind_baseline("point-goal-v1", seeds=1, blind_aim="median")
 
 
 def test_only_rewards_tell_reach_goals_apart_but_plate_slide_shows_its_goal_to_a_probe_that_pushes_into_it():

@@ -489,24 +489,35 @@ def demonstrator_goal_blind(
     demonstrator: Annotated[str | None, typer.Option(
         metavar="MODULE:CALLABLE", help="your own goal-conditioned expert (called with the task name; it must have "
         "act_toward(observations, goals)), for a task of your own; default: the package's scripted expert")] = None,
+    weights: Annotated[Path | None, typer.Option(
+        help="a folder of trained goal-aware experts (the meta-RL tasks'), from `vintix demonstrator train`")] = None,
+    blind_aim: Annotated[str, typer.Option(
+        help="what the goal-blind expert aims at: mean (the mean goal) or best (the best constant goal, for tasks "
+        "whose mean goal is no goal, as a direction task's)")] = "mean",
 ) -> None:
-    """Which tasks hide information: the scripted expert's success aimed at the true goal vs at the mean goal."""
+    """Which tasks hide information: the expert's success and return aimed at the true goal vs blind (the mean goal,
+    or the best constant one), beside a random policy's return."""
     from vintix.demonstrators.goal_blind import goal_blind_baseline, goal_blind_path, write_goal_blind
 
     try:
         specs = resolve_tasks(task)
         command = f"vintix demonstrator goal-blind --task {{task}} --seeds {seeds} --first-seed {first_seed}"
         command += f" --demonstrator {demonstrator}" if demonstrator else ""
-        results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name), demonstrator)
+        command += f" --weights {weights}" if weights else ""
+        command += f" --blind-aim {blind_aim}" if blind_aim != "mean" else ""
+        results = [goal_blind_baseline(spec.name, seeds, first_seed, command.format(task=spec.name), demonstrator,
+                                       weights, blind_aim)
                    for spec in tqdm(specs, desc="goal-blind baselines", disable=None)]
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     table = Table(title=f"success over {seeds} episodes (env seeds {first_seed}..{first_seed + seeds - 1})")
-    for column in ("task", "true goal", "goal-blind", "hidden information", "return: true goal", "return: goal-blind"):
+    for column in ("task", "true goal", "goal-blind", "hidden information", "return: true goal", "return: goal-blind",
+                   "return: random", "hidden return"):
         table.add_column(column, justify="left" if column == "task" else "right")
     for r in sorted(results, key=lambda r: -r.hidden_information):
         table.add_row(r.task, f"{r.true_goal_success:.2f}", f"{r.goal_blind_success:.2f}",
-                      f"{r.hidden_information:+.2f}", f"{r.true_goal_return:.1f}", f"{r.goal_blind_return:.1f}")
+                      f"{r.hidden_information:+.2f}", f"{r.true_goal_return:.1f}", f"{r.goal_blind_return:.1f}",
+                      f"{r.random_return:.1f}", f"{r.hidden_return:+.2f}")
     console.print(table)
     console.print(f"wrote {len(results)} rows to {write_goal_blind(results, out)}")
     if update_package_table:
