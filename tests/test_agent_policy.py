@@ -145,6 +145,20 @@ def test_an_episodes_last_reward_reaches_only_a_last_reward_model(last_reward):
         agent.predict(np.zeros(4), None, True)
 
 
+@pytest.mark.parametrize("last_action", [False, True])
+def test_an_episodes_last_action_reaches_only_a_last_action_model(last_action):
+    """The action that ended an episode (Key-to-Door's step onto the door) is seen at the next episode's start only
+    by a last_action model; the prompt's rows shift across episodes as training windows do."""
+    def second_episode_action(last: float) -> np.ndarray:
+        agent = Agent(tiny_model(last_reward=True, last_action=last_action))
+        agent.reset(["InvertedPendulum-v5"])
+        actions = np.array([[0.1], [0.2], [0.3], [last]])
+        agent.prompt([np.zeros((4, 4))], [actions], [np.ones(4)], [np.arange(4)])
+        return agent.predict(np.zeros(4), 1.0, True)[0]
+
+    assert np.array_equal(second_episode_action(2.0), second_episode_action(-2.0)) != last_action
+
+
 def test_the_agent_never_feeds_a_reward_it_was_not_given_nor_spreads_one_over_several_envs():
     """A missing reward mid-episode would be the zero-reward ablation, run unasked; one reward for two envs,
     or flags of the wrong count, would silently be spread or cut."""

@@ -167,6 +167,22 @@ def test_last_reward_reaches_an_episodes_first_token_and_every_parameter_learns(
     assert not unused
 
 
+@pytest.mark.parametrize("shared_padding", [False, True])
+def test_last_action_reaches_an_episodes_first_token_and_leaves_no_padding_unused(shared_padding):
+    model = make_model(last_reward=True, last_action=True, shared_padding=shared_padding).train()
+    batch = make_batch("A", "a0", model)
+    out = model(**batch)
+    starts = batch["step_num"] == 0
+    changed = {**batch, "prev_action": batch["prev_action"].clone()}
+    changed["prev_action"][starts] = 5.0  # the previous episode's last action, which ended it
+    assert not torch.allclose(model(**changed)[starts], out[starts], atol=1e-4)
+    out.square().mean().backward()
+    unused = [n for n, p in model.named_parameters() if p.grad is None and ".B." not in n]
+    assert not unused and not [n for n, _ in model.named_parameters() if n.endswith("act_pad")]
+    with pytest.raises(ValueError, match="last_action needs last_reward"):
+        tiny_config(last_action=True)
+
+
 def test_observations_are_normalized_per_task_with_a_std_floor():
     model = make_model(std_floor=0.25)
     a1 = model.task_index("a1")

@@ -332,7 +332,8 @@ class Agent:
 
     def _no_actions(self, group: str, envs: int) -> torch.Tensor:
         """The previous actions of `envs` envs of `group` before their first: zeros (an episode start's padding
-        replaces them); a discrete group's are indices."""
+        replaces them, or a `ModelConfig.last_action` model reads them, as it was trained on a history's first row);
+        a discrete group's are indices."""
         spec = self.model.groups[group]
         if spec.discrete:
             return torch.zeros(envs, dtype=torch.long, device=self.device)

@@ -97,6 +97,11 @@ class ModelConfig:
     """an episode's first token carries the previous episode's last reward (its action part stays padding; a
     run's first token carries 0), so a reward paid only at an episode's end (a success bonus) reaches the
     model; False: the paper's token layout, where that reward is never seen and the release's format"""
+    last_action: bool = False
+    """with last_reward, an episode's first token also carries the previous episode's last action (a run's first
+    token: zeros, action 0 of a discrete group), so the step that ends an episode is whole in the context: where
+    an episode ends on reaching something (Key-to-Door's door), that step's cell is otherwise never seen, only its
+    neighbour; False: padding, as in the paper"""
     activation: str = "gelu"
     """activation in encoders and heads: 'gelu', or 'leaky_relu' as in the official release"""
     policy: str = "deterministic"
@@ -116,6 +121,11 @@ class ModelConfig:
         """Whether any token's reward part is the learned padding vector (episode starts, or all under
         mask_reward); a padding no token uses would be a parameter without a gradient, which DDP refuses."""
         return self.mask_reward or not self.last_reward
+
+    @property
+    def pads_action(self) -> bool:
+        """Whether any token's action part is the learned padding vector (episode starts unless last_action)."""
+        return not self.last_action
 
     @property
     def d_model(self) -> int:
@@ -138,6 +148,9 @@ class ModelConfig:
         if self.obs_fourier_bands > MAX_FOURIER_BANDS:
             raise ModelConfigError(f"obs_fourier_bands={self.obs_fourier_bands}: at most {MAX_FOURIER_BANDS}; past "
                                    "that a float32 observation has no digits left for the fastest band to read")
+        if self.last_action and not self.last_reward:
+            raise ModelConfigError("last_action needs last_reward: an episode's first token would carry the last "
+                                   "action without the reward it earned")
         if self.n_layers > MAX_LAYERS or self.head_layers > MAX_LAYERS:
             raise ModelConfigError(f"n_layers={self.n_layers}, head_layers={self.head_layers}: at most {MAX_LAYERS} "
                                    "each (the paper's model has 20); more is a typo, and would take minutes to build")
@@ -377,17 +390,19 @@ class GroupEncoder(nn.Module):
         self.rew = None if config.mask_reward else _reward_mlp(config)
         # Episode starts have no previous action/reward; a learned vector says so (the model's shared
         # pair under shared_padding: `Vintix.encode` hands the right pair in).
-        self.act_pad = None if config.shared_padding else _padding(config.act_emb_dim)
+        self.act_pad = None if config.shared_padding or not config.pads_action else _padding(config.act_emb_dim)
         self.rew_pad = None if config.shared_padding or not config.pads_reward else _padding(config.rew_emb_dim)
         self.last_reward = config.last_reward
 
     def forward(
         self, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
-        episode_start: torch.Tensor, act_pad: torch.Tensor, rew_pad: torch.Tensor | None,
+        episode_start: torch.Tensor, act_pad: torch.Tensor | None, rew_pad: torch.Tensor | None,
     ) -> torch.Tensor:
         start = episode_start.unsqueeze(-1)
         e_obs = self.obs(fourier_features(obs, self.fourier_bands))
-        e_act = torch.where(start, act_pad, self.act(prev_action))
+        e_act = self.act(prev_action)
+        if act_pad is not None:  # None under last_action: an episode start's action is the previous episode's last
+            e_act = torch.where(start, act_pad, e_act)
         if self.rew is None:
             assert rew_pad is not None  # mask_reward pads every token
             e_rew = rew_pad.expand(*e_obs.shape[:-1], -1)
@@ -524,7 +539,7 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         self.register_buffer("alibi_slopes", alibi_slopes(config.n_heads), persistent=False)
 
         self.encoders = nn.ModuleDict({g.name: GroupEncoder(g, config) for g in groups})
-        self.act_pad = _padding(config.act_emb_dim) if config.shared_padding else None
+        self.act_pad = _padding(config.act_emb_dim) if config.shared_padding and config.pads_action else None
         self.rew_pad = _padding(config.rew_emb_dim) if config.shared_padding and config.pads_reward else None
         self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
         self.ln_f = nn.LayerNorm(config.d_model)
@@ -613,8 +628,8 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
         prev_reward: torch.Tensor, step_num: torch.Tensor,
     ) -> torch.Tensor:
-        """Tokens ``[B, T, d_model]``; at ``step_num == 0`` prev_action is ignored, and prev_reward too unless
-        `ModelConfig.last_reward` (there it is the previous episode's last reward)."""
+        """Tokens ``[B, T, d_model]``; at ``step_num == 0`` prev_action is ignored unless `ModelConfig.last_action`,
+        and prev_reward unless `ModelConfig.last_reward` (there they are the previous episode's last)."""
         spec = self.groups.get(group)
         if spec is None:
             raise ValueError(f"unknown group {group!r}; the model has {sorted(self.groups)}")
@@ -642,9 +657,8 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         if spec.discrete:
             prev_action = F.one_hot(prev_action.long().clamp(0, spec.act_dim - 1), spec.act_dim).to(obs.dtype)
         owner = self if self.config.shared_padding else encoder
-        act_pad, rew_pad = owner.act_pad, owner.rew_pad
-        assert isinstance(act_pad, torch.Tensor)  # the owner has it (and rew_pad unless last_reward)
-        return encoder(obs, prev_action, prev_reward, episode_start, act_pad, rew_pad)
+        # The owner has each padding its config uses (`ModelConfig.pads_action`, `pads_reward`).
+        return encoder(obs, prev_action, prev_reward, episode_start, owner.act_pad, owner.rew_pad)
 
     def backbone(self, x: torch.Tensor) -> torch.Tensor:
         """Causal transformer over tokens ``[B, T, d_model]``, positions 0..T-1."""
