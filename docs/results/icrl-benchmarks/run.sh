@@ -12,6 +12,11 @@ cell darkroom-search darkroom-search DarkRoom-heldout-v0      # DART (the shippe
                                                               # variants: the recipe's earlier versions (README)
 cell keytodoor-search keytodoor-search KeyToDoor-heldout-v0  # DART; keytodoor-search-first/: the recipe's first version
 cell keytodoor-ad keytodoor-ad KeyToDoor-heldout-v0
+# a clean search for 20 %, then DART (the recipe beside its records), and the same data with Fourier position codes
+R=docs/results/icrl-benchmarks
+scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml keytodoor-search KeyToDoor-heldout-v0 "$W/keytodoor-cleansearch"
+scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml $R/keytodoor-fourier/config.yaml KeyToDoor-heldout-v0 \
+  "$W/keytodoor-fourier"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
