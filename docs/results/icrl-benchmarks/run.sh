@@ -32,4 +32,4 @@ for source in darkroom-ad darkroom-adeps darkroom-search; do
 done
 vintix eval --checkpoint "$W/darkroom-search/run" --tasks DarkRoom-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
   --greedy --reward-input zero --out "$W/greedy/darkroom-search-zero"
-python scripts/bandit_baselines.py "$W"/bandit-{ad,posterior}/results/{true,zero,shuffled}
+python scripts/bandit_baselines.py "$W"/bandit-{ad,adeps,posterior}/results/{true,zero,shuffled}
