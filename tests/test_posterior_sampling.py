@@ -5,7 +5,9 @@ import dataclasses
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from vintix.cli import app
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
 from vintix.data import LearningHistory
 from vintix.demonstrators import PosteriorSamplingDemonstrator, load_demonstrator
@@ -167,6 +169,11 @@ def test_a_blind_expert_can_aim_at_the_best_constant_goal_and_rows_keep_a_random
     assert row.blind_aim == "mean" and np.isnan(row.random_return)
     with pytest.raises(VintixError, match="blind aim 'median'"):
         goal_blind_baseline("point-goal-v1", seeds=1, blind_aim="median")
+    cli = CliRunner().invoke(app, ["demonstrator", "goal-blind", "--task", "point-goal-v1", "--seeds", "3",
+                                   "--blind-aim", "best", "--out", str(tmp_path / "cli.csv")])
+    assert cli.exit_code == 0, cli.output
+    row = read_goal_blind(tmp_path / "cli.csv")["point-goal-v1"]
+    assert row.blind_aim == "best" and row.command.endswith("--blind-aim best")
 
 
 def test_only_rewards_tell_reach_goals_apart_but_plate_slide_shows_its_goal_to_a_probe_that_pushes_into_it():
@@ -206,10 +213,6 @@ def test_probe_then_sample_records_the_probe_then_the_expert_as_its_target_and_p
 
 
 def test_demonstrator_histories_prints_how_a_goal_inferring_demonstrator_does_episode_after_episode():
-    from typer.testing import CliRunner
-
-    from vintix.cli import app
-
     runner = CliRunner()
     result = runner.invoke(app, ["demonstrator", "histories", "--task", "point-goal-v1", "--behaviour", "probing",
                                  "--seeds", "10", "--episodes", "2"])
