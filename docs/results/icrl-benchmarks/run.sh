@@ -17,6 +17,8 @@ R=docs/results/icrl-benchmarks
 scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml keytodoor-search KeyToDoor-heldout-v0 "$W/keytodoor-cleansearch"
 scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml $R/keytodoor-fourier/config.yaml KeyToDoor-heldout-v0 \
   "$W/keytodoor-fourier"
+scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml $R/keytodoor-lastaction/config.yaml KeyToDoor-heldout-v0 \
+  "$W/keytodoor-lastaction"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
