@@ -100,9 +100,14 @@ def goals_of_seeds(task: str, seeds: Iterable[int]) -> list[np.ndarray]:
     return goals
 
 
-def mean_goal(task: str) -> np.ndarray:
-    """The average hidden goal of `task` over `MEAN_GOAL_DRAWS` env seeds no evaluation uses."""
-    return np.mean(goals_of_seeds(task, range(MEAN_GOAL_FIRST_SEED, MEAN_GOAL_FIRST_SEED + MEAN_GOAL_DRAWS)), axis=0)
+def goal_draws(task: str) -> list[np.ndarray]:
+    """The hidden goals of `task`'s envs on `MEAN_GOAL_DRAWS` seeds no evaluation uses."""
+    return goals_of_seeds(task, range(MEAN_GOAL_FIRST_SEED, MEAN_GOAL_FIRST_SEED + MEAN_GOAL_DRAWS))
+
+
+def mean_goal(task: str, draws: list[np.ndarray] | None = None) -> np.ndarray:
+    """The average of `task`'s `goal_draws` (drawn here unless given)."""
+    return np.mean(goal_draws(task) if draws is None else draws, axis=0)
 
 
 class AimedExpert:
@@ -120,8 +125,8 @@ class AimedExpert:
 def best_blind_aim(task: str, expert: GoalConditionedExpert) -> np.ndarray:
     """The goal that, aimed at in every env, earns `expert` the most mean return on the scouting seeds: of the
     mean goal and the goals of `AIM_CANDIDATES` draws."""
-    candidates = [mean_goal(task), *goals_of_seeds(task, range(MEAN_GOAL_FIRST_SEED,
-                                                                 MEAN_GOAL_FIRST_SEED + AIM_CANDIDATES))]
+    draws = goal_draws(task)  # drawn once: the mean's draws, the first of them the candidates
+    candidates = [mean_goal(task, draws), *draws[:AIM_CANDIDATES]]
     scouted = [episode_outcomes(task, AimedExpert(expert, goal), AIM_SCOUT_EPISODES,
                                 AIM_SCOUT_FIRST_SEED)[0].mean() for goal in candidates]
     return candidates[int(np.argmax(scouted))]

@@ -128,6 +128,11 @@ class ModelConfig:
         return not self.last_action
 
     @property
+    def obs_codes_per_channel(self) -> int:
+        """Inputs of the observation encoder per observation channel: the channel and its Fourier codes."""
+        return 1 + 2 * self.obs_fourier_bands
+
+    @property
     def d_model(self) -> int:
         """Transformer width: the three token parts side by side."""
         return self.obs_emb_dim + self.act_emb_dim + self.rew_emb_dim
@@ -383,7 +388,7 @@ class GroupEncoder(nn.Module):
     def __init__(self, spec: GroupSpec, config: ModelConfig):
         super().__init__()
         self.fourier_bands = config.obs_fourier_bands
-        self.obs = _encoder_mlp(spec.obs_dim * (1 + 2 * self.fourier_bands), config.obs_emb_dim, config.activation)
+        self.obs = _encoder_mlp(spec.obs_dim * config.obs_codes_per_channel, config.obs_emb_dim, config.activation)
         self.act = _encoder_mlp(spec.act_dim, config.act_emb_dim, config.activation)
         # No reward encoder at all under mask_reward: parameters that never get a gradient would
         # make DDP fail.
@@ -704,10 +709,10 @@ def estimated_parameters(config: ModelConfig, groups: Sequence[GroupSpec]) -> in
     built, since building a model of 10^9 layers, even on torch's meta device, never ends."""
     d = config.d_model
     per_block = 4 * d * d + 2 * d * config.mlp_dim  # attention's qkv and projection, the MLP's two layers
-    obs_inputs = 1 + 2 * config.obs_fourier_bands  # per observation channel (`fourier_features`)
     per_group = sum(
-        spec.obs_dim * obs_inputs * config.obs_emb_dim + config.obs_emb_dim ** 2 + spec.act_dim * config.act_emb_dim
-        + config.act_emb_dim ** 2 + config.head_layers * d * d + d * spec.act_dim for spec in groups)
+        spec.obs_dim * config.obs_codes_per_channel * config.obs_emb_dim + config.obs_emb_dim ** 2
+        + spec.act_dim * config.act_emb_dim + config.act_emb_dim ** 2 + config.head_layers * d * d + d * spec.act_dim
+        for spec in groups)
     return config.n_layers * per_block + per_group
 
 
