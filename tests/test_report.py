@@ -290,3 +290,20 @@ def test_domain_intervals_resample_runs_within_each_task():
     # Pooled resampling also draws how many runs of each task a resample gets; stratified does not.
     assert high - low < 0.5 * (pooled[2] - pooled[1])
     assert stratified_iqm_with_ci([np.array([0.3]), np.array([0.5])]) == (0.4, 0.4, 0.4)
+
+
+def test_a_task_measured_by_return_shows_how_much_of_it_the_hidden_goal_decides(tmp_path):
+    """Ant-Dir flags no success: its row carries the hidden return of the goal-blind table instead, the most a
+    reward-use gap can show there, and the columns line up with the header."""
+    with one_thread():
+        evaluate(Agent(tiny_model(("Ant-Dir-v5",))), EvalConfig(tasks=["Ant-Dir-v5"], shots=1, seeds=2),
+                 tmp_path / "ant", "runs/ant", "tiny")
+    result = CliRunner().invoke(app, ["report", str(tmp_path / "ant"), "--out", str(tmp_path / "report"),
+                                      "--reference", "ours"])
+    assert result.exit_code == 0, result.output
+    lines = (tmp_path / "report" / "report.md").read_text().splitlines()
+    header = next(line for line in lines if line.startswith("| task (ours-normalized)"))
+    row = next(line for line in lines if line.startswith("| Ant-Dir-v5 | tiny |"))
+    assert header.endswith("| hidden return |") and row.count("|") == header.count("|")
+    assert row.endswith(f"| {read_goal_blind()['Ant-Dir-v5'].hidden_return:.2f} |")
+    assert "the most a reward-use gap can show" in "\n".join(lines)

@@ -505,13 +505,18 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
         lines.append(f"![{domain}](figures/domain-{_slug(domain)}.png)")
 
     # The goal-blind expert's success (demonstrators/goal_blind.csv) beside shot 1 and converged: what a
-    # model reaches without reading a single reward.
+    # model reaches without reading a single reward; and, for tasks measured by return (the meta-RL ones), the
+    # share of the expert's return only the hidden parameter buys: the most a reward-use gap can show.
     goal_blind = read_goal_blind()
+    hidden_returns = {r.tasks[v]: goal_blind[r.tasks[v]].hidden_return for r in results for v in r.scores
+                      if r.tasks[v] in goal_blind and np.isfinite(goal_blind[r.tasks[v]].hidden_return)}
     success_columns = " success shot 1 | success converged | goal-blind success |" if with_success else ""
     with_paper = table == "paper"  # the paper's Vintix scores are paper-normalized: beside such scores only
+    extra_columns = with_paper + model_card + 3 * with_success + bool(hidden_returns)
     lines += ["\n## Per task\n", f"| task ({table}-normalized) | label | runs | shot 1 | converged | from shot |"
-              + (" paper's Vintix |" if with_paper else "") + (" model card |" if model_card else "") + success_columns,
-              "|---|---|---|---|---|---|" + "---|" * (with_paper + model_card + 3 * with_success)]
+              + (" paper's Vintix |" if with_paper else "") + (" model card |" if model_card else "") + success_columns
+              + (" hidden return |" if hidden_returns else ""),
+              "|---|---|---|---|---|---|" + "---|" * extra_columns]
     bars = []
     for variant in sorted({v for r in results for v in r.scores}):
         curves = {}
@@ -534,8 +539,15 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
                 blind = goal_blind.get(r.tasks[variant])
                 cells += _success_cells(r, [variant], plateau_shots)
                 cells.append("—" if blind is None else _rate(blind.goal_blind_success))
+            if hidden_returns:
+                hidden = hidden_returns.get(r.tasks[variant])
+                cells.append("—" if hidden is None else f"{hidden:.2f}")
             lines.append("| " + " | ".join(cells) + " |")
         plot_curves(curves, variant, figures / "tasks" / f"{_slug(variant)}.png", "mean")
+    if hidden_returns:
+        lines.append("\n*hidden return*: the goal-aware expert's return aimed at the true goal minus aimed blind, over "
+                     "its return minus a random policy's (`vintix demonstrator goal-blind`): the score only the hidden "
+                     "goal buys, and so the most a reward-use gap can show on the task.")
     longest = max(scores.shape[1] for r in results for scores in r.scores.values())
     plot_first_vs_converged(bars, min(plateau_shots, longest), figures / "first-vs-converged.png")
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
