@@ -19,6 +19,11 @@ scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml $R/keytodoor-four
   "$W/keytodoor-fourier"
 scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml $R/keytodoor-lastaction/config.yaml KeyToDoor-heldout-v0 \
   "$W/keytodoor-lastaction"
+# the same run resumed to 3,000 steps, twice its budget (the cosine restarts from step 1,500)
+mkdir -p "$W/keytodoor-lastaction-3000" && cp -rn "$W/keytodoor-lastaction/data" "$W/keytodoor-lastaction/run" \
+  "$W/keytodoor-lastaction-3000/"
+TRAIN_ARGS="--set max_steps=3000" scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml \
+  $R/keytodoor-lastaction/config.yaml KeyToDoor-heldout-v0 "$W/keytodoor-lastaction-3000"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
