@@ -28,10 +28,11 @@ def path_to(target, start=START):
     return [4 if dx > 0 else 3] * abs(dx) + [1 if dy > 0 else 2] * abs(dy)
 
 
-def test_the_domain_registers_seven_discrete_tasks_whose_held_out_goals_are_a_split_task():
+def test_the_domain_registers_nine_discrete_tasks_whose_held_out_goals_are_a_split_task():
     tasks = {t.name: t for t in list_tasks(domain="icrl")}
     assert set(tasks) == {"DarkRoom-v0", "DarkRoom-heldout-v0", "DarkRoomHard-v0", "DarkRoomHard-heldout-v0",
-                          "KeyToDoor-v0", "KeyToDoor-heldout-v0", "BernoulliBandit-v0"}
+                          "KeyToDoor-v0", "KeyToDoor-heldout-v0", "KeyToDoorRandomStart-v0",
+                          "KeyToDoorRandomStart-heldout-v0", "BernoulliBandit-v0"}
     assert all(t.discrete for t in tasks.values())
     assert (tasks["DarkRoom-v0"].act_dim, tasks["DarkRoom-v0"].episode_length) == (5, 20)
     assert tasks["DarkRoom-heldout-v0"].split == "test" and tasks["DarkRoom-v0"].split == "train"
@@ -71,6 +72,20 @@ def test_dark_room_hard_pays_once_and_key_to_door_pays_the_key_then_the_door_whi
     assert sum(rewards) == 0 and not done
     rewards, done = play(env, path_to(key) + path_to(door, key))
     assert rewards.count(1.0) == 2 and sum(rewards) == 2.0 and done
+
+
+def test_key_to_door_with_random_starts_starts_each_episode_elsewhere_never_on_the_key_as_its_seed_says():
+    """AD^ε's Key-to-Door: the same pairs as KeyToDoor-v0, a start drawn anew each episode from the env's seed."""
+    env = make_env("KeyToDoorRandomStart-v0", seed=3)
+    key, door = env.unwrapped.true_goal
+    np.testing.assert_array_equal([key, door], make_env("KeyToDoor-v0", seed=3).unwrapped.true_goal)
+    starts = [tuple(env.reset()[0]) for _ in range(30)]
+    assert len(set(starts)) > 10 and tuple(key) not in starts
+    again = make_env("KeyToDoorRandomStart-v0", seed=3)
+    assert [tuple(again.reset()[0]) for _ in range(30)] == starts
+    rewards, done = play(make_env("KeyToDoorRandomStart-v0", seed=3),  # its first episode starts at starts[0]
+                         path_to(key, np.array(starts[0], dtype=int)) + path_to(door, key))
+    assert sum(rewards) == 2.0 and done
 
 
 def test_a_hidden_goal_is_drawn_from_the_seed_and_kept_across_resets():

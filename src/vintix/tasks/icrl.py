@@ -17,6 +17,8 @@ it: only the rewards reveal it, so a model that ignores them cannot beat a goal-
   hidden door (distinct cells); reward 1 the first time the agent stands on the key, then 1 when it stands on the
   door holding it, which ends the episode; 50-step episodes. The observation is the position only: whether the key
   is held is in the context (its reward). Held-out pairs: a fixed fifth of the 81 × 80 (key, door) pairs.
+  ``KeyToDoorRandomStart-v0`` (and ``-heldout-v0``): AD^ε's version, each episode starting on a random cell other
+  than the key, so that no episode is a copy of the last.
 - **Bernoulli bandit** (``BernoulliBandit-v0``): 5 arms whose success probabilities are drawn uniformly from [0, 1]
   by the seed; an episode is 10 pulls (so a token carries the previous pull's arm and reward) and the context
   carries over across episodes. The observation is a constant 0. New bandits: new seeds (the means are
@@ -189,21 +191,28 @@ class DarkRoomEnv(GridEnv):
 
 
 class KeyToDoorEnv(GridEnv):
-    """Key-to-Door: reward 1 on reaching the hidden key, then 1 on reaching the hidden door with it (the end)."""
+    """Key-to-Door: reward 1 on reaching the hidden key, then 1 on reaching the hidden door with it (the end).
+    `random_start`: each episode starts on a cell drawn anew (never the key), as AD^ε's ``DarkKey2Door`` does,
+    instead of the centre."""
 
     episode_steps = KEY_TO_DOOR_STEPS
 
-    def __init__(self, seed: int | None = None, held_out: bool = False) -> None:
+    def __init__(self, seed: int | None = None, held_out: bool = False, random_start: bool = False) -> None:
         self._has_key = False
+        self.random_start = random_start
         super().__init__(seed, held_out)
 
     def _draw(self, seed: int | None) -> None:
         pairs = pair_split()[1 if self.held_out else 0]
         key, door = pairs[pick(seed, len(pairs))]
         self._key, self._door = cells()[key], cells()[door]
+        self._starts = np.random.default_rng(seed)  # the seed's own stream of starts, as a new env would draw
 
     def _begin_episode(self) -> None:
         self._has_key = False
+        if self.random_start:
+            others = cells()[(cells() != self._key).any(axis=1)]
+            self._position = others[self._starts.integers(len(others))]
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         self._move(action)
@@ -298,7 +307,8 @@ def _grid_tasks() -> list[IcrlTask]:
     tasks = []
     for name, env, steps, extra in (("DarkRoom", "dark_room", DARK_ROOM_STEPS, {}),
                                     ("DarkRoomHard", "dark_room", DARK_ROOM_STEPS, {"hard": True}),
-                                    ("KeyToDoor", "key_to_door", KEY_TO_DOOR_STEPS, {})):
+                                    ("KeyToDoor", "key_to_door", KEY_TO_DOOR_STEPS, {}),
+                                    ("KeyToDoorRandomStart", "key_to_door", KEY_TO_DOOR_STEPS, {"random_start": True})):
         for held_out in (False, True):
             tasks.append(IcrlTask(f"{name}{'-heldout' if held_out else ''}-v0", name.lower(), 2, len(MOVES), steps,
                                   {"env": env, "held_out": held_out, **extra}, "test" if held_out else "train"))
