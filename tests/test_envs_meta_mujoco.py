@@ -85,7 +85,7 @@ def test_a_goal_aware_expert_sees_the_parameter_and_trains_on_a_new_one_each_epi
         with_goal_observed(make_env("Reacher-hidden-v5"))
 
 
-def test_a_task_whose_expert_is_not_trained_says_how_to_train_it():
+def test_a_task_whose_expert_is_not_trained_says_how_to_train_it(tmp_path):
     with pytest.raises(MissingDemonstratorError, match="'halfcheetah-vel'.*vintix demonstrator train --task "
                                                        "HalfCheetah-Vel-v5"):
-        load_demonstrator("HalfCheetah-Vel-v5")
+        load_demonstrator("HalfCheetah-Vel-v5", tmp_path)  # a folder without its weights
