@@ -24,6 +24,9 @@ mkdir -p "$W/keytodoor-lastaction-3000" && cp -rn "$W/keytodoor-lastaction/data"
   "$W/keytodoor-lastaction-3000/"
 TRAIN_ARGS="--set max_steps=3000" scripts/icrl_benchmark.sh $R/keytodoor-cleansearch/recipe.yaml \
   $R/keytodoor-lastaction/config.yaml KeyToDoor-heldout-v0 "$W/keytodoor-lastaction-3000"
+# AD^ε's random start each episode, the same clean search and model
+scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml $R/keytodoor-lastaction/config.yaml \
+  KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-randomstart"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
