@@ -294,16 +294,15 @@ def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episod
     assert normalized(task, returns.mean()) >= 0.8
 
 
-@pytest.mark.parametrize("task", ["Ant-Dir-v5"])
+@pytest.mark.parametrize("task", ["Ant-Dir-v5", "HalfCheetah-Vel-v5"])
 def test_a_shipped_goal_aware_expert_goes_where_its_parameter_says(task):
-    """A meta-RL task's shipped expert, on envs of either direction: each episode earns most of what its table row
-    records (scores.csv), so it walks the hidden way, not the other."""
+    """A meta-RL task's shipped expert, on envs of other hidden parameters (both directions, four velocities): every
+    episode scores most of what its table rows record (scores.csv), so it follows each env's own parameter."""
     seeds = [100, 101, 102, 103]
-    directions = [float(make_env(task, seed=seed).unwrapped.true_goal[0]) for seed in seeds]
-    assert set(directions) == {-1.0, 1.0}
+    assert len({float(make_env(task, seed=seed).unwrapped.true_goal[0]) for seed in seeds}) >= 2
     recorded = {s.policy: s.mean for s in read_scores() if s.task == task}
     returns = episode_returns(task, load_demonstrator(task), len(seeds), seeds[0])
-    assert min(returns) > 0.5 * recorded["demonstrator"] > recorded["random"]
+    assert min((returns - recorded["random"]) / (recorded["demonstrator"] - recorded["random"])) > 0.7
 
 
 def test_every_shipped_demonstrator_records_its_command_and_score():
