@@ -23,8 +23,8 @@ def test_version_prints_the_installed_package_version():
 
 def test_tasks_lists_the_papers_102_the_packages_hidden_goal_meta_rl_and_discrete_ones():
     result = runner.invoke(app, ["tasks"])
-    assert result.exit_code == 0  # 102 + point-goal, Reacher-hidden, 3 meta-RL + 7 discrete
-    assert "114 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
+    assert result.exit_code == 0  # 102 + point-goal, Reacher-hidden, 3 meta-RL + 9 discrete
+    assert "116 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
     assert "point-goal-v1" in result.output and "Reacher-hidden-v5" in result.output
     assert "DarkRoom-heldout-v0" in result.output and "5 discrete" in result.output
 
