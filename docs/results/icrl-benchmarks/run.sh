@@ -27,6 +27,10 @@ TRAIN_ARGS="--set max_steps=3000" scripts/icrl_benchmark.sh $R/keytodoor-cleanse
 # AD^ε's random start each episode, the same clean search and model
 scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml $R/keytodoor-lastaction/config.yaml \
   KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-randomstart"
+mkdir -p "$W/keytodoor-randomstart-3000" && cp -rn "$W/keytodoor-randomstart/data" "$W/keytodoor-randomstart/run" \
+  "$W/keytodoor-randomstart-3000/"
+TRAIN_ARGS="--set max_steps=3000" scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml \
+  $R/keytodoor-lastaction/config.yaml KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-randomstart-3000"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
