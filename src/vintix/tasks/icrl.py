@@ -206,13 +206,13 @@ class KeyToDoorEnv(GridEnv):
         pairs = pair_split()[1 if self.held_out else 0]
         key, door = pairs[pick(seed, len(pairs))]
         self._key, self._door = cells()[key], cells()[door]
+        self._start_cells = np.delete(cells(), key, axis=0)  # a random start is anywhere but the key
         self._starts = np.random.default_rng(seed)  # the seed's own stream of starts, as a new env would draw
 
     def _begin_episode(self) -> None:
         self._has_key = False
         if self.random_start:
-            others = cells()[(cells() != self._key).any(axis=1)]
-            self._position = others[self._starts.integers(len(others))]
+            self._position = self._start_cells[self._starts.integers(len(self._start_cells))]
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         self._move(action)
