@@ -37,7 +37,8 @@ def task_losses(model: Vintix, extra: dict[str, Any], root: str, windows: int, s
     config = extra["train_config"]
     data = load_training_data(root, tasks=extra["trained_tasks"], expert_distillation=config["expert_distillation"],
                               expert_tail_fraction=config["expert_tail_fraction"], expert_rows=config["expert_rows"])
-    dataset = WindowDataset(data, config["window_len"] or model.config.context_len, seed=seed)
+    dataset = WindowDataset(data, config["window_len"] or model.config.context_len, seed=seed,
+                            episode_returns=model.config.episode_return)
     loss = WindowLoss(model)
     losses: dict[str, list[float]] = {}
     with torch.no_grad():

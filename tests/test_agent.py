@@ -48,6 +48,31 @@ def test_from_pretrained_cold_start_equals_the_models_forward_over_the_same_hist
     np.testing.assert_allclose(actions, expected, rtol=1e-5, atol=1e-5)
 
 
+def test_an_episode_return_model_acting_equals_its_forward_given_each_episodes_return_so_far():
+    """The agent keeps what each episode earned, stepping and prompting alike: the actions of a run equal the
+    model's forward over it with the returns summed here, step by step, from the rewards."""
+    model = tiny_model(episode_return=True)
+    inputs = random_inputs(model, "metaworld", 1, steps=20, episode=6)
+    rewards, steps = inputs["prev_reward"][0], inputs["step_num"][0]
+    earned = np.zeros(20, np.float32)
+    for t in range(1, 20):
+        earned[t] = 0.0 if steps[t] == 0 else earned[t - 1] + rewards[t]
+    agent = Agent(model)
+    agent.reset(["push-v3"], [UNBOUNDED[4]])
+    actions = play(agent, [inputs], 20)[0]
+    prev_action = np.concatenate([np.zeros((1, 4), np.float32), actions[:-1]])[None]
+    with torch.inference_mode():
+        expected = model("metaworld", torch.tensor([model.task_index("push-v3")]), torch.tensor(inputs["obs"]),
+                         torch.tensor(prev_action), torch.tensor(inputs["prev_reward"]),
+                         torch.tensor(inputs["step_num"]), torch.tensor(earned[None]))[0].numpy()
+    np.testing.assert_allclose(actions, expected, rtol=1e-5, atol=1e-5)
+    # Prompted with the first 14 steps (rows: the reward after each action), then stepped: the same actions.
+    agent.reset(["push-v3"], [UNBOUNDED[4]], discard_context=True)
+    agent.prompt([inputs["obs"][0, :14]], [actions[:14]], [rewards[1:15]], [steps[:14]])
+    tail = [agent.act([inputs["obs"][0, t]], [rewards[t]], [steps[t] == 0])[0] for t in range(14, 20)]
+    np.testing.assert_allclose(tail, expected[14:], rtol=1e-5, atol=1e-5)
+
+
 def test_a_mixed_group_batch_acts_like_each_env_alone():
     model = tiny_model()
     tasks = ["reach-v3", "InvertedPendulum-v5", "push-v3"]

@@ -167,6 +167,25 @@ def test_last_reward_reaches_an_episodes_first_token_and_every_parameter_learns(
     assert not unused
 
 
+def test_an_episode_return_model_reads_what_the_episode_earned_and_others_do_not():
+    """`episode_return`: the return so far reaches every token but the episode's first (where it is 0 anyway) and
+    changes the outputs; a model without it is unchanged by it; one with it refuses to run without it."""
+    batch = make_batch("A", "a0", make_model())
+    starts = batch["step_num"] == 0
+    earned = torch.rand(batch["prev_reward"].shape, generator=torch.Generator().manual_seed(2))
+    model = make_model(episode_return=True)
+    out = model(**batch, prev_return=earned)
+    changed = earned.clone()
+    changed[starts] += 3.0
+    assert torch.equal(model(**batch, prev_return=changed), out)
+    changed[~starts] += 1.0
+    assert not torch.allclose(model(**batch, prev_return=changed)[~starts], out[~starts], atol=1e-4)
+    plain = make_model()
+    assert torch.equal(plain(**batch, prev_return=earned), plain(**batch))
+    with pytest.raises(ValueError, match="episode_return.*pass prev_return"):
+        model(**batch)
+
+
 @pytest.mark.parametrize("shared_padding", [False, True])
 def test_last_action_reaches_an_episodes_first_token_and_leaves_no_padding_unused(shared_padding):
     model = make_model(last_reward=True, last_action=True, shared_padding=shared_padding).train()

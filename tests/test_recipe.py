@@ -96,3 +96,14 @@ def test_a_recipe_with_missing_or_mistyped_settings_names_them(tmp_path, text, m
     with pytest.raises(CollectionError, match=message) as error:
         load_recipe(path)
     assert str(path) in str(error.value)
+
+
+def test_the_meta_mujoco_recipe_holds_the_three_meta_rl_tasks_each_hidden_and_each_selected_on():
+    """Each must be a task whose hidden parameter is worth return (the hidden-information table), played by the
+    demonstrator that never sees it; selection scores return on all three, as they have no success flag."""
+    plans, table, config = load_recipe("meta-mujoco"), read_goal_blind(), load_config("meta-mujoco")
+    assert [plan.task for plan in plans] == ["HalfCheetah-Vel-v5", "HalfCheetah-Dir-v5", "Ant-Dir-v5"]
+    for plan in plans:
+        assert table[plan.task].hidden_return > 0.3, plan.task
+        assert plan.behaviour == "probe-then-sample" and plan.target == "expert", plan.task
+    assert config.select_tasks == [plan.task for plan in plans] and config.select_metric == "score"

@@ -88,6 +88,22 @@ def test_window_is_consecutive_rows_of_one_history_with_true_previous_action(dat
     assert mid_episode_starts > 100, "random offsets start most windows mid-episode"
 
 
+def test_episode_returns_are_what_each_rows_episode_earned_before_it_also_where_a_window_opens_mid_episode(
+        dataset, tmp_path):
+    """The rows' rewards are row / 10 (`write_history`): a token's return so far is the sum over its episode's
+    earlier rows, which a window opening mid-episode must read from before its own first row."""
+    windows = WindowDataset(load(dataset, tmp_path), window_len=30, seed=3, episode_returns=True)
+    assert "prev_return" not in WindowDataset(load(dataset, tmp_path), window_len=30, seed=3)[0]
+    opened_mid_episode = 0
+    for i in range(100):
+        w = windows[i]
+        rows, step = w["obs"][:, 0].astype(int), w["step_num"]
+        expected = [sum(range(row - s, row)) / 10 for row, s in zip(rows, step, strict=True)]
+        np.testing.assert_allclose(w["prev_return"], expected, rtol=1e-5)
+        opened_mid_episode += bool(step[0] > 1)
+    assert opened_mid_episode > 50
+
+
 def test_every_start_offset_of_a_history_is_reachable(tmp_path):
     root = tmp_path / "data"
     write_task(root, "reach-v3", [[10] * 4])  # 40 rows, windows of 30: starts 0..10

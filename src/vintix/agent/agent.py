@@ -29,7 +29,7 @@ from vintix.agent.pretrained import resolve_checkpoint
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.fields import check_threads
 from vintix.model.checkpoint import CheckpointError, load_pretrained
-from vintix.model.model import Vintix, normalize_inputs
+from vintix.model.model import Vintix, episode_returns_so_far, normalize_inputs
 from vintix.tasks import ActionSpaceError, action_space_of, find_task, get_task, task_action_space
 from vintix.tasks.layouts import ObsLayout
 from vintix.train.checkpoint import intact_alternative_hint
@@ -273,6 +273,8 @@ class Agent:
         self._awaiting_start = np.zeros(0, dtype=bool)
         self._last_rewards = np.zeros(0)
         """per env, sat out the last step under next-step autoreset: its next observation starts an episode"""
+        self._episode_returns = np.zeros(0)
+        """per env, what its episode had earned before the last token fed (`ModelConfig.episode_return`)"""
 
     @classmethod
     def from_pretrained(cls, directory: str | os.PathLike[str], device: str | torch.device = "cpu",
@@ -328,6 +330,7 @@ class Agent:
         self.cache = KVCache.for_model(self.model, len(self.tasks))
         self._awaiting_start = np.zeros(len(self.tasks), dtype=bool)
         self._last_rewards = np.zeros(len(self.tasks))  # next-step autoreset: the reward that came with the flag
+        self._episode_returns = np.zeros(len(self.tasks))
         self._generator.manual_seed(self.seed)
 
     def _no_actions(self, group: str, envs: int) -> torch.Tensor:
@@ -365,6 +368,7 @@ class Agent:
         self.tasks = [self.tasks[i] for i in envs]
         self._awaiting_start = self._awaiting_start[envs]
         self._last_rewards = self._last_rewards[envs]
+        self._episode_returns = self._episode_returns[envs]
         self._regroup()
         self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()])
                              for g, b in self._groups.items()}
@@ -399,19 +403,27 @@ class Agent:
     def _tokens(
         self, obs: Sequence[np.ndarray], prev_actions: dict[str, torch.Tensor], prev_rewards: np.ndarray,
         episode_starts: np.ndarray,
-    ) -> torch.Tensor:
-        """Tokens ``[B, T, d_model]`` from per-env obs ``[T, obs_dim]``, rewards/starts ``[B, T]``."""
+    ) -> tuple[torch.Tensor, np.ndarray]:
+        """Tokens ``[B, T, d_model]`` from per-env obs ``[T, obs_dim]``, rewards/starts ``[B, T]``, and what each
+        token's episode had earned before it ``[B, T]``, which an `ModelConfig.episode_return` model reads and the
+        caller keeps for the tokens it feeds."""
         steps = prev_rewards.shape[1]
+        returns = episode_returns_so_far(prev_rewards, episode_starts, self._episode_returns + prev_rewards[:, 0])
+        with_returns = self.model.config.episode_return
         tokens = torch.empty(len(self.tasks), steps, self.model.config.d_model, device=self.device)
         for group, batch in self._groups.items():
             envs = batch.envs.tolist()
             o = torch.as_tensor(np.stack([self._model_obs(i, obs[i]) for i in envs]), dtype=torch.float32,
                                 device=self.device)
-            reward = torch.as_tensor(prev_rewards[envs], dtype=torch.float32, device=self.device)
+            raw = np.stack([prev_rewards[envs], returns[envs]], -1) if with_returns else prev_rewards[envs]
+            reward = torch.as_tensor(raw, dtype=torch.float32, device=self.device)
             o, reward = normalize_inputs(o, reward, batch.obs_mean, batch.obs_std, batch.reward_scale)
             start = torch.as_tensor(episode_starts[envs], device=self.device)
-            tokens[batch.envs] = self.model.encode(group, o, prev_actions[group], reward, start)
-        return tokens
+            earned = None
+            if with_returns:
+                reward, earned = reward[..., 0], reward[..., 1]
+            tokens[batch.envs] = self.model.encode(group, o, prev_actions[group], reward, start, earned)
+        return tokens, returns
 
     @_one_call_at_a_time
     @torch.inference_mode()
@@ -461,8 +473,10 @@ class Agent:
             )
         sitting_out = None if skip is None or not skip.any() else torch.as_tensor(skip, device=self.device)
         prev_actions = {g: a.unsqueeze(1) for g, a in self._prev_action.items()}
-        tokens = self._tokens([o[None] for o in observations], prev_actions, rewards[:, None], starts[:, None])
+        tokens, returns = self._tokens([o[None] for o in observations], prev_actions, rewards[:, None],
+                                       starts[:, None])
         hidden = cached_backbone(self.model, tokens, self.cache, sitting_out)[:, -1]
+        self._episode_returns = returns[:, 0] if skip is None else np.where(skip, self._episode_returns, returns[:, 0])
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, members in self._groups.items():
             if self.model.groups[group].discrete:
@@ -622,7 +636,9 @@ class Agent:
         prev_rewards = np.stack([np.concatenate([[0.0], np.asarray(r[:-1], np.float64)]) for r in rewards])
         starts = np.stack([np.asarray(s) == 0 for s in step_nums])
         starts[:, 0] = True  # a prompt's first step has nothing before it
-        cached_backbone(self.model, self._tokens(observations, shifted, prev_rewards, starts), self.cache)
+        tokens, returns = self._tokens(observations, shifted, prev_rewards, starts)
+        cached_backbone(self.model, tokens, self.cache)
+        self._episode_returns = returns[:, -1]
         for g, b in self._groups.items():
             self._prev_action[g] = torch.as_tensor(
                 np.stack([actions[i][-1] for i in b.envs.tolist()]), dtype=dtype(g), device=self.device

@@ -102,6 +102,11 @@ class ModelConfig:
     token: zeros, action 0 of a discrete group), so the step that ends an episode is whole in the context: where
     an episode ends on reaching something (Key-to-Door's door), that step's cell is otherwise never seen, only its
     neighbour; False: padding, as in the paper"""
+    episode_return: bool = False
+    """each token also carries the return its episode earned before it (scaled as rewards, 0 at an episode start;
+    `episode_returns_so_far`), so where a task pays for a subgoal and then for the goal (Key-to-Door's key, then its
+    door) whether the subgoal is done is in the token itself, not in an earlier one the model must find; the agent
+    keeps the sum. False: the paper's token layout"""
     activation: str = "gelu"
     """activation in encoders and heads: 'gelu', or 'leaky_relu' as in the official release"""
     policy: str = "deterministic"
@@ -402,8 +407,10 @@ class GroupEncoder(nn.Module):
     def forward(
         self, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
         episode_start: torch.Tensor, act_pad: torch.Tensor | None, rew_pad: torch.Tensor | None,
+        prev_return: torch.Tensor | None = None,
     ) -> torch.Tensor:
         start = episode_start.unsqueeze(-1)
+        rewards = prev_reward.unsqueeze(-1) if prev_return is None else torch.stack([prev_reward, prev_return], -1)
         e_obs = self.obs(fourier_features(obs, self.fourier_bands))
         e_act = self.act(prev_action)
         if act_pad is not None:  # None under last_action: an episode start's action is the previous episode's last
@@ -412,10 +419,10 @@ class GroupEncoder(nn.Module):
             assert rew_pad is not None  # mask_reward pads every token
             e_rew = rew_pad.expand(*e_obs.shape[:-1], -1)
         elif self.last_reward:  # an episode start's reward is the previous episode's last
-            e_rew = self.rew(prev_reward.unsqueeze(-1))
+            e_rew = self.rew(rewards)
         else:
             assert rew_pad is not None
-            e_rew = torch.where(start, rew_pad, self.rew(prev_reward.unsqueeze(-1)))
+            e_rew = torch.where(start, rew_pad, self.rew(rewards))
         return torch.cat([e_obs, e_act, e_rew], dim=-1)
 
 
@@ -427,7 +434,7 @@ def _reward_mlp(config: ModelConfig) -> nn.Sequential:
     # No LayerNorm here, unlike the obs/action encoders: one scalar times a weight vector has a single
     # direction, and LayerNorm would keep the direction and drop the scalar, the very thing to encode.
     act = _ACTIVATIONS[config.activation]
-    layers: list[nn.Module] = [nn.Linear(1, config.rew_emb_dim), act()]
+    layers: list[nn.Module] = [nn.Linear(2 if config.episode_return else 1, config.rew_emb_dim), act()]
     if config.reward_encoder == "mlp":
         layers += [nn.Linear(config.rew_emb_dim, config.rew_emb_dim), act()]
     return nn.Sequential(*layers)
@@ -443,10 +450,27 @@ def _action_head(d_model: int, act_dim: int, hidden_layers: int, activation: str
 
 def normalize_inputs(obs: torch.Tensor, reward: torch.Tensor, mean: torch.Tensor, divisor: torch.Tensor,
                      reward_scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """What the model sees of raw inputs ``obs [B, T, obs_dim]`` and ``reward [B, T]``, given each
-    sequence's statistics ``mean, divisor [B, obs_dim]`` and ``reward_scale [B]``: the one place the
-    normalization is written, for training (`Vintix.normalize`) and the agent alike."""
-    return (obs - mean.unsqueeze(1)) / divisor.unsqueeze(1), reward * reward_scale.unsqueeze(1)
+    """What the model sees of raw inputs ``obs [B, T, obs_dim]`` and ``reward [B, T]`` (or rewards and episode
+    returns ``[B, T, 2]``, scaled alike), given each sequence's statistics ``mean, divisor [B, obs_dim]`` and
+    ``reward_scale [B]``: the one place the normalization is written, for training (`Vintix.normalize`) and the
+    agent alike."""
+    scale = reward_scale.reshape(-1, *[1] * (reward.dim() - 1))
+    return (obs - mean.unsqueeze(1)) / divisor.unsqueeze(1), reward * scale
+
+
+def episode_returns_so_far(prev_reward: np.ndarray, episode_start: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """The return each token's episode earned before it (`ModelConfig.episode_return`), ``[B, T]``, from the rewards
+    tokens carry ``prev_reward [B, T]`` and their ``episode_start [B, T]`` flags: 0 at a start, else the token
+    before's plus the reward it carries. ``first [B]`` is the first token's where it is no start (a training window
+    that opens mid-episode, an agent's next step): what the training data and the agent both compute."""
+    earned = np.where(episode_start, 0.0, prev_reward).astype(np.float64)
+    earned[:, 0] = np.where(episode_start[:, 0], 0.0, first)
+    total = np.cumsum(earned, axis=1)
+    steps = np.arange(total.shape[1])
+    last_start = np.maximum.accumulate(np.where(episode_start, steps, 0), axis=1)
+    # What the run had earned by its episode's start (its start's total, which the start's 0 leaves unchanged).
+    before = np.where(np.cumsum(episode_start, axis=1) > 0, np.take_along_axis(total, last_start, axis=1), 0.0)
+    return (total - before).astype(np.float32)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -631,10 +655,12 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
 
     def embed(
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
-        prev_reward: torch.Tensor, step_num: torch.Tensor,
+        prev_reward: torch.Tensor, step_num: torch.Tensor, prev_return: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Tokens ``[B, T, d_model]``; at ``step_num == 0`` prev_action is ignored unless `ModelConfig.last_action`,
-        and prev_reward unless `ModelConfig.last_reward` (there they are the previous episode's last)."""
+        and prev_reward unless `ModelConfig.last_reward` (there they are the previous episode's last).
+        ``prev_return [B, T]``: what each token's episode earned before it, read by (and only by) an
+        `ModelConfig.episode_return` model."""
         spec = self.groups.get(group)
         if spec is None:
             raise ValueError(f"unknown group {group!r}; the model has {sorted(self.groups)}")
@@ -648,22 +674,31 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
             )
         if (self.task_group[task_idx] != self._group_index[group]).any():
             raise ValueError(f"task_idx {task_idx.tolist()} holds tasks outside group {group!r}")
-        obs, prev_reward = self.normalize(task_idx, obs, prev_reward)
-        return self.encode(group, obs, prev_action, prev_reward, step_num == 0)
+        if not self.config.episode_return:
+            obs, prev_reward = self.normalize(task_idx, obs, prev_reward)
+            return self.encode(group, obs, prev_action, prev_reward, step_num == 0)
+        if prev_return is None or prev_return.shape != prev_reward.shape:
+            raise ValueError("this model reads each token's episode return so far (episode_return): pass prev_return "
+                             f"shaped as prev_reward {tuple(prev_reward.shape)}, got "
+                             f"{None if prev_return is None else tuple(prev_return.shape)}")
+        obs, rewards = self.normalize(task_idx, obs, torch.stack([prev_reward, prev_return], -1))
+        return self.encode(group, obs, prev_action, rewards[..., 0], step_num == 0, rewards[..., 1])
 
     def encode(
         self, group: str, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
-        episode_start: torch.Tensor,
+        episode_start: torch.Tensor, prev_return: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """Tokens of one group from already normalized observations and scaled rewards; a discrete group's
-        `prev_action` holds indices ``[B, T]`` (any at an episode start: the padding replaces it)."""
+        """Tokens of one group from already normalized observations and scaled rewards (and scaled episode returns
+        so far, which only an `ModelConfig.episode_return` model reads); a discrete group's `prev_action` holds
+        indices ``[B, T]`` (any at an episode start: the padding replaces it)."""
         encoder = self.encoders[group]
         spec = self.groups[group]
         if spec.discrete:
             prev_action = F.one_hot(prev_action.long().clamp(0, spec.act_dim - 1), spec.act_dim).to(obs.dtype)
         owner = self if self.config.shared_padding else encoder
         # The owner has each padding its config uses (`ModelConfig.pads_action`, `pads_reward`).
-        return encoder(obs, prev_action, prev_reward, episode_start, owner.act_pad, owner.rew_pad)
+        return encoder(obs, prev_action, prev_reward, episode_start, owner.act_pad, owner.rew_pad,
+                       prev_return if self.config.episode_return else None)
 
     def backbone(self, x: torch.Tensor) -> torch.Tensor:
         """Causal transformer over tokens ``[B, T, d_model]``, positions 0..T-1."""
@@ -694,12 +729,12 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
 
     def forward(
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,
-        prev_reward: torch.Tensor, step_num: torch.Tensor,
+        prev_reward: torch.Tensor, step_num: torch.Tensor, prev_return: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Predicted a_t for every step: ``obs [B,T,obs_dim]``, ``prev_action [B,T,act_dim]`` (a discrete group:
         indices ``[B,T]``, and the output is logits), ``prev_reward [B,T]``, ``step_num [B,T]`` (step within
-        episode), ``task_idx [B]``."""
-        x = self.embed(group, task_idx, obs, prev_action, prev_reward, step_num)
+        episode), ``task_idx [B]``; ``prev_return [B,T]`` for an `ModelConfig.episode_return` model (`embed`)."""
+        x = self.embed(group, task_idx, obs, prev_action, prev_reward, step_num, prev_return)
         return self.head(group, self.backbone(x))
 
 

@@ -31,7 +31,7 @@ from vintix.atomic import atomic_write_text
 from vintix.data.hdf5 import LearningHistory, TaskData, dims_text, find_tasks
 from vintix.data.validate import task_mismatch, validate_history
 from vintix.errors import DatasetError, UnknownTaskError, VintixError, json_loads
-from vintix.model.model import GroupSpec, TaskNorm
+from vintix.model.model import GroupSpec, TaskNorm, episode_returns_so_far
 from vintix.tasks import TaskSpec, get_task, resolve_tasks
 from vintix.userdirs import user_cache_dir
 
@@ -39,7 +39,7 @@ TaskSampling = Literal["uniform", "volume"]
 Window = dict[str, np.ndarray | int | str]
 Batch = dict[str, dict[str, torch.Tensor]]
 """A micro-batch: group name -> that group's windows stacked (``task_idx``, ``obs``, ``prev_action``,
-``prev_reward``, ``step_num``, ``action``)."""
+``prev_reward``, ``step_num``, ``action``, and ``prev_return`` where the dataset gives episode returns)."""
 
 
 class TrainingDataError(VintixError, ValueError):
@@ -389,12 +389,14 @@ class WindowDataset(torch.utils.data.Dataset):
     """
 
     def __init__(self, data: TrainingData, window_len: int, sparsity: int = 1, stochastic_sparsity: bool = False,
-                 task_sampling: TaskSampling = "uniform", seed: int = 0) -> None:
+                 task_sampling: TaskSampling = "uniform", seed: int = 0, episode_returns: bool = False) -> None:
+        """`episode_returns`: also give each window ``prev_return``, what each token's episode earned before it
+        (`vintix.model.ModelConfig.episode_return`)."""
         if window_len < 1 or sparsity < 1:
             raise ValueError(f"window_len and episode sparsity must be >= 1, got {window_len} and {sparsity}")
         if task_sampling not in ("uniform", "volume"):
             raise ValueError(f"task_sampling must be 'uniform' or 'volume', got {task_sampling!r}")
-        self.data, self.window_len, self.seed = data, window_len, seed
+        self.data, self.window_len, self.seed, self.episode_returns = data, window_len, seed, episode_returns
         self.sparsities = list(range(1, sparsity + 1)) if stochastic_sparsity else [sparsity]
         self._check_windows_fit()
         weights = np.array([t.steps if task_sampling == "volume" else 1.0 for t in data.tasks], dtype=np.float64)
@@ -437,16 +439,21 @@ class WindowDataset(torch.utils.data.Dataset):
         parts: dict[str, list[np.ndarray]] = {key: [] for key in ("obs", "step_num", "action")}
         executed: dict[str, list[np.ndarray]] = {"action": [], "reward": []}
         before: dict[str, np.ndarray] = {}
+        earned = 0.0  # by the window's first row, in its episode
         for n, (lo, hi) in enumerate(history.segments(e, offset, self.window_len, k)):
             # The window's first token reads the history's previous row, if any, for its previous action and
             # reward: a mid-episode one is what the model sees once its sliding window is full, and an
-            # episode start's reward is the previous episode's last (`ModelConfig.last_reward`).
+            # episode start's reward is the previous episode's last (`ModelConfig.last_reward`). One that opens
+            # mid-episode reads from its episode's start for what the episode earned before it.
             first = lo - 1 if n == 0 and lo > 0 else lo
+            if n == 0 and offset and self.episode_returns:
+                first = int(history.bounds[e])
             rows = history.history.read(first, hi, demonstrator_action=task.target == "demonstrator_action")
             check_finite_rows(history.history.path, first, rows)
-            if first < lo:
-                before = {key: rows[key][0] for key in executed}
             skip = lo - first
+            if skip:
+                before = {key: rows[key][skip - 1] for key in executed}
+                earned = float(rows["reward"][:skip].sum()) if offset else 0.0
             for key in executed:
                 executed[key].append(rows[key][skip:])
             parts["obs"].append(rows["observation"][skip:])
@@ -457,10 +464,15 @@ class WindowDataset(torch.utils.data.Dataset):
         # Token t carries step t-1's action and reward, across segment borders too: with episode sparsity an
         # episode's start carries the last reward of the episode before it in the window. The history's
         # first row has none (zeros).
+        previous = {}
         for key, name in (("action", "prev_action"), ("reward", "prev_reward")):
             done = np.concatenate(executed[key])
             first_row = before.get(key, np.zeros_like(done[0]))
-            window[name] = np.concatenate([first_row[None], done[:-1]])
+            previous[name] = window[name] = np.concatenate([first_row[None], done[:-1]])
+        if self.episode_returns:
+            starts = np.concatenate(parts["step_num"]) == 0
+            window["prev_return"] = episode_returns_so_far(previous["prev_reward"][None], starts[None],
+                                                           np.array([earned]))[0]
         window.update(task_idx=t, group=task.group)
         return window
 
@@ -483,8 +495,9 @@ def collate_windows(windows: Sequence[Window]) -> Batch:
     batch: Batch = {}
     for group in sorted(by_group):
         members = by_group[group]
-        stacked = {key: torch.from_numpy(np.stack([w[key] for w in members]))
-                   for key in ("obs", "prev_action", "prev_reward", "step_num", "action")}
+        stacked: dict[str, torch.Tensor] = {key: torch.from_numpy(np.stack([w[key] for w in members]))
+                   for key in ("obs", "prev_action", "prev_reward", "prev_return", "step_num", "action")
+                   if key in members[0]}
         stacked["task_idx"] = torch.tensor([int(w["task_idx"]) for w in members], dtype=torch.long)
         batch[group] = stacked
     return batch

@@ -98,8 +98,8 @@ class WindowLoss(nn.Module):
 
     def forward(self, batch: Batch) -> torch.Tensor:
         groups = list(batch)
-        tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"])
-                  for g, b in batch.items()]
+        tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"],
+                                   b.get("prev_return")) for g, b in batch.items()]
         hidden = self.model.backbone(torch.cat(tokens))
         losses = []
         for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True):
@@ -504,7 +504,8 @@ class Trainer:
     def _loader(self) -> torch.utils.data.DataLoader:
         cfg = self.config
         dataset = WindowDataset(self.data, self.window_len, cfg.episode_sparsity, cfg.stochastic_sparsity,
-                                cfg.task_sampling, cfg.seed)  # type: ignore[arg-type]
+                                cfg.task_sampling, cfg.seed,  # type: ignore[arg-type]
+                                episode_returns=self.model.config.episode_return)
         sampler = WindowBatches(cfg.batch_size, self.step * cfg.grad_accum, self.dist.rank, self.dist.world_size)
         return torch.utils.data.DataLoader(
             dataset, batch_sampler=sampler, collate_fn=collate_windows, num_workers=cfg.num_workers,
