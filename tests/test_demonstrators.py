@@ -294,7 +294,7 @@ def test_shipped_demonstrators_reach_80_percent_of_the_paper_expert(task, episod
     assert normalized(task, returns.mean()) >= 0.8
 
 
-@pytest.mark.parametrize("task", ["Ant-Dir-v5", "HalfCheetah-Vel-v5"])
+@pytest.mark.parametrize("task", ["Ant-Dir-v5", "HalfCheetah-Vel-v5", "HalfCheetah-Dir-v5"])
 def test_a_shipped_goal_aware_expert_goes_where_its_parameter_says(task):
     """A meta-RL task's shipped expert, on envs of other hidden parameters (both directions, four velocities): every
     episode scores most of what its table rows record (scores.csv), so it follows each env's own parameter."""
