@@ -31,6 +31,10 @@ mkdir -p "$W/keytodoor-randomstart-3000" && cp -rn "$W/keytodoor-randomstart/dat
   "$W/keytodoor-randomstart-3000/"
 TRAIN_ARGS="--set max_steps=3000" scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml \
   $R/keytodoor-lastaction/config.yaml KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-randomstart-3000"
+# the same data, each token also carrying what its episode earned before it (episode_return: whether the key is held)
+mkdir -p "$W/keytodoor-episodereturn" && cp -rn "$W/keytodoor-randomstart/data" "$W/keytodoor-episodereturn/"
+scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml $R/keytodoor-episodereturn/config.yaml \
+  KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-episodereturn"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
