@@ -12,6 +12,13 @@ vintix train --config meta-mujoco --data "$W/data" --out "$W/runs/ad" --threads 
 SHOTS=40 scripts/icrl.sh meta-mujoco "$W"   # the evaluations and the report (collection and training are done)
 vintix report "$W/results/ad-true" "$W/results/ad-zero" "$W/results/ad-shuffled" --reference ours --gap-shots 2-10 \
   --out "$W/report-2-10"
+# HalfCheetah-Vel alone: the same config on its 400 histories only, 1,500 steps, 10 episodes, true and zero rewards
+vintix train --config meta-mujoco --data "$W/data" --out "$W/vel-alone" --threads 2 --set "tasks=[HalfCheetah-Vel-v5]" \
+  --set "select_tasks=[HalfCheetah-Vel-v5]" --set max_steps=1500 --set select_every=500
+for rewards in true zero; do
+  vintix eval --checkpoint "$W/vel-alone" --tasks HalfCheetah-Vel-v5 --shots 10 --seeds 20 --first-seed 100 \
+    --reference ours --reward-input "$rewards" --out "$W/vel-alone-results/$rewards"
+done
 # HalfCheetah-Vel: mean x-velocity per half-episode of the selected model, 4 seeds, 4 episodes (the README's table)
 python - "$W/runs/ad/checkpoints/best" <<'PY'
 import sys
