@@ -419,10 +419,7 @@ class Agent:
             reward = torch.as_tensor(raw, dtype=torch.float32, device=self.device)
             o, reward = normalize_inputs(o, reward, batch.obs_mean, batch.obs_std, batch.reward_scale)
             start = torch.as_tensor(episode_starts[envs], device=self.device)
-            earned = None
-            if with_returns:
-                reward, earned = reward[..., 0], reward[..., 1]
-            tokens[batch.envs] = self.model.encode(group, o, prev_actions[group], reward, start, earned)
+            tokens[batch.envs] = self.model.encode(group, o, prev_actions[group], reward, start)
         return tokens, returns
 
     @_one_call_at_a_time

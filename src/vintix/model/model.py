@@ -403,14 +403,15 @@ class GroupEncoder(nn.Module):
         self.act_pad = None if config.shared_padding or not config.pads_action else _padding(config.act_emb_dim)
         self.rew_pad = None if config.shared_padding or not config.pads_reward else _padding(config.rew_emb_dim)
         self.last_reward = config.last_reward
+        self.reward_inputs = 2 if config.episode_return else 1
 
     def forward(
         self, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
         episode_start: torch.Tensor, act_pad: torch.Tensor | None, rew_pad: torch.Tensor | None,
-        prev_return: torch.Tensor | None = None,
     ) -> torch.Tensor:
         start = episode_start.unsqueeze(-1)
-        rewards = prev_reward.unsqueeze(-1) if prev_return is None else torch.stack([prev_reward, prev_return], -1)
+        # [B, T] or, under episode_return, [B, T, 2]: the reward and the episode's return so far
+        rewards = prev_reward.reshape(*obs.shape[:-1], self.reward_inputs)
         e_obs = self.obs(fourier_features(obs, self.fourier_bands))
         e_act = self.act(prev_action)
         if act_pad is not None:  # None under last_action: an episode start's action is the previous episode's last
@@ -674,31 +675,30 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
             )
         if (self.task_group[task_idx] != self._group_index[group]).any():
             raise ValueError(f"task_idx {task_idx.tolist()} holds tasks outside group {group!r}")
-        if not self.config.episode_return:
-            obs, prev_reward = self.normalize(task_idx, obs, prev_reward)
-            return self.encode(group, obs, prev_action, prev_reward, step_num == 0)
-        if prev_return is None or prev_return.shape != prev_reward.shape:
-            raise ValueError("this model reads each token's episode return so far (episode_return): pass prev_return "
-                             f"shaped as prev_reward {tuple(prev_reward.shape)}, got "
-                             f"{None if prev_return is None else tuple(prev_return.shape)}")
-        obs, rewards = self.normalize(task_idx, obs, torch.stack([prev_reward, prev_return], -1))
-        return self.encode(group, obs, prev_action, rewards[..., 0], step_num == 0, rewards[..., 1])
+        rewards = prev_reward
+        if self.config.episode_return:
+            if prev_return is None or prev_return.shape != prev_reward.shape:
+                raise ValueError("this model reads each token's episode return so far (episode_return): pass "
+                                 f"prev_return shaped as prev_reward {tuple(prev_reward.shape)}, got "
+                                 f"{None if prev_return is None else tuple(prev_return.shape)}")
+            rewards = torch.stack([prev_reward, prev_return], -1)
+        obs, rewards = self.normalize(task_idx, obs, rewards)
+        return self.encode(group, obs, prev_action, rewards, step_num == 0)
 
     def encode(
         self, group: str, obs: torch.Tensor, prev_action: torch.Tensor, prev_reward: torch.Tensor,
-        episode_start: torch.Tensor, prev_return: torch.Tensor | None = None,
+        episode_start: torch.Tensor,
     ) -> torch.Tensor:
-        """Tokens of one group from already normalized observations and scaled rewards (and scaled episode returns
-        so far, which only an `ModelConfig.episode_return` model reads); a discrete group's `prev_action` holds
-        indices ``[B, T]`` (any at an episode start: the padding replaces it)."""
+        """Tokens of one group from already normalized observations and scaled rewards ``[B, T]`` (an
+        `ModelConfig.episode_return` model's: ``[B, T, 2]``, each episode's scaled return so far beside them); a
+        discrete group's `prev_action` holds indices ``[B, T]`` (any at an episode start: the padding replaces it)."""
         encoder = self.encoders[group]
         spec = self.groups[group]
         if spec.discrete:
             prev_action = F.one_hot(prev_action.long().clamp(0, spec.act_dim - 1), spec.act_dim).to(obs.dtype)
         owner = self if self.config.shared_padding else encoder
         # The owner has each padding its config uses (`ModelConfig.pads_action`, `pads_reward`).
-        return encoder(obs, prev_action, prev_reward, episode_start, owner.act_pad, owner.rew_pad,
-                       prev_return if self.config.episode_return else None)
+        return encoder(obs, prev_action, prev_reward, episode_start, owner.act_pad, owner.rew_pad)
 
     def backbone(self, x: torch.Tensor) -> torch.Tensor:
         """Causal transformer over tokens ``[B, T, d_model]``, positions 0..T-1."""
