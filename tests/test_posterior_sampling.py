@@ -21,7 +21,7 @@ from vintix.demonstrators.goal_blind import (
 from vintix.demonstrators.posterior import FumblingExpert
 from vintix.demonstrators.scores import episode_outcomes, history_outcomes
 from vintix.errors import VintixError
-from vintix.tasks import make_env
+from vintix.tasks import get_task, make_env
 from vintix.tasks.toy import EPISODE_LENGTH, START, SUCCESS_RADIUS
 
 NO_NOISE = NoiseSchedule(noise_free_fraction=1.0)
@@ -279,3 +279,21 @@ def test_a_fumbling_lapse_holds_the_gripper_open_so_pick_place_fails_where_the_e
     demonstrator = load_demonstrator("pick-place-v3", behaviour="probe-then-sample", lapse_probability=1.0)
     outcomes = history_outcomes("pick-place-v3", demonstrator, range(100, 106), episodes=4)
     assert outcomes.success[:, 2:].mean() <= 0.5  # every episode from the third on lapses, half of them fumbling
+
+
+def test_halfcheetah_vels_probe_stands_still_all_episode_and_its_rewards_place_the_target(tmp_path):
+    """A model has no clock, so it cannot copy a probe that switches mid-episode with nothing in the observation
+    saying when: HalfCheetah-Vel's probe stands still (its range's low end) for the whole first episode, each reward
+    minus the target speed (less the control cost), and the episode after it runs at the target."""
+    length = get_task("HalfCheetah-Vel-v5").episode_length
+    plan = CollectionPlan("HalfCheetah-Vel-v5", histories=2, steps=2 * length, schedule=NO_NOISE, envs_per_batch=2,
+                          behaviour="probe-then-sample")
+    for summary in collect(plan, tmp_path):
+        with LearningHistory(summary.path) as history:
+            rows = history.read(0, 2 * length)
+            target = float(make_env("HalfCheetah-Vel-v5", seed=int(history.attrs["env_seed"])).unwrapped.true_goal[0])
+        speed = rows["observation"][:, 8]  # the root's x-velocity (qvel[0] after qpos[1:])
+        probe, later = slice(20, length), slice(length + 100, 2 * length)
+        assert np.abs(speed[probe]).mean() < 0.3  # through both halves of the first episode
+        assert rows["reward"][probe].mean() == pytest.approx(-target, abs=0.3)
+        assert speed[later].mean() == pytest.approx(target, abs=0.5)

@@ -106,6 +106,14 @@ class PosteriorSettings:
     units), so that the probe passes through fewer goals by chance while its rewards still place them.
     Meta-World reach, probe-then-sample, 20 unseen goals: the probing episode succeeds on 0.50 of them
     at 0, on 0.25 at 0.06 m, and the 7 episodes after it return 708-819 and 779-812"""
+    probe_low_end: bool = False
+    """with probe_steps: the probe aims at the goal box's low corner for the whole first episode instead of
+    visiting corners (HalfCheetah-Vel stands still, and each reward is minus the target speed less the control
+    cost). A model cannot copy a probe that switches corners mid-episode where nothing in the observation says
+    when: it has no clock (`step_num` only marks episode starts). On HalfCheetah-Vel's two-end probe (3 m/s
+    for 100 steps, then 0) the model ran 2.2-2.7 m/s through its own, never read the rewards it had learned to
+    read, and scored the same with rewards as fed zeros; prompted with the demonstrator's probe, it ran at the
+    target speed"""
     search: bool = False
     """sparse rewards: a search instead of a draw. The candidates are the same for every history (drawn with
     `SEARCH_SEED`) and ordered as a tour from the one nearest the goal box's centre; every step aims at the first
@@ -147,7 +155,7 @@ def search_order(candidates: np.ndarray, start: np.ndarray) -> np.ndarray:
 DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(),
                     "point-goal": PosteriorSettings(reward_tolerance=0.05, update_every=1),
                     "mujoco-reacher-hidden": PosteriorSettings(reward_tolerance=0.005, update_every=1),
-                    "halfcheetah-vel": PosteriorSettings(reward_tolerance=0.05, update_every=1),
+                    "halfcheetah-vel": PosteriorSettings(reward_tolerance=0.05, update_every=1, probe_low_end=True),
                     "halfcheetah-dir": PosteriorSettings(reward_tolerance=0.05, update_every=1, jitter=0.0,
                                                          min_jitter=0.0),
                     "ant-dir": PosteriorSettings(reward_tolerance=0.05, update_every=1, jitter=0.0, min_jitter=0.0)}
@@ -155,7 +163,7 @@ DEFAULT_SETTINGS = {"metaworld": PosteriorSettings(),
 # Steps at each probed corner, per group, so that the probe fills the first episode: Meta-World's 3-D
 # goal boxes have 4 corners to probe (a tetrahedron) in a 100-step episode, the toy's range 2 ends in 10,
 # the hidden Reacher's square 2 opposite corners (beyond the arm's reach: it sweeps at full stretch) in 50, a
-# meta-RL task's range its 2 ends in 200.
+# meta-RL task's range its 2 ends in 200 (HalfCheetah-Vel only its low end, `PosteriorSettings.probe_low_end`).
 PROBE_STEPS = {"metaworld": 25, "point-goal": 5, "mujoco-reacher-hidden": 25, "halfcheetah-vel": 100,
                "halfcheetah-dir": 100, "ant-dir": 100}
 
@@ -208,7 +216,8 @@ class _GoalPosterior:
         self.steps, self.episode = 0, 0
         self.fumbling = False
         """whether this episode is a lapse that mishandles the object"""
-        self.corners = _probe_corners(self.low - settings.probe_margin, self.high + settings.probe_margin)
+        low, high = self.low - settings.probe_margin, self.high + settings.probe_margin
+        self.corners = low[None] if settings.probe_low_end else _probe_corners(low, high)
         self.alive = np.ones(len(candidates), dtype=bool)
         """with `search`: the candidates no reward has ruled out"""
         self.guess = self._draw()
