@@ -32,7 +32,7 @@ from vintix.evaluate import (
     select_tasks,
     shots_to_show,
 )
-from vintix.evaluate.run import RewardFeed, play_shots
+from vintix.evaluate.run import RewardFeed, other_goal, play_shots
 from vintix.model import save_pretrained
 from vintix.tasks import make_env
 from vintix.train import ConfigError, TrainConfig
@@ -238,6 +238,32 @@ def test_a_feed_tells_the_model_zeros_or_the_episodes_own_rewards_out_of_order()
     assert [again(r) for r in rewards] == fed  # seeded by the env seed: reproducible
     shuffled.new_episode()
     assert shuffled(7.0) == 7.0  # a new episode draws from its own rewards only
+
+
+def test_an_other_goal_feed_tells_the_model_what_each_step_would_earn_under_another_seeds_goal():
+    """Rewards as consistent as the true ones, pointing elsewhere: a direction task's feed is the other direction's
+    reward, HalfCheetah-Vel's another seed's target speed's, to the episode's last step (priced before a reset)."""
+    env = make_env("HalfCheetah-Dir-v5", seed=100)
+    assert other_goal("HalfCheetah-Dir-v5", 100, env)[0] == -env.unwrapped.true_goal[0]
+    for task in ("HalfCheetah-Dir-v5", "HalfCheetah-Vel-v5"):
+        env = make_env(task, seed=100)
+        other = float(other_goal(task, 100, env)[0])
+        assert other == float(make_env(task, seed=101).unwrapped.true_goal[0]) != env.unwrapped.true_goal[0]
+        feed = RewardFeed("other-goal", 100, task, env)
+        env.reset()
+        for action in np.random.default_rng(0).uniform(-1, 1, (200, 6)):
+            _, reward, terminated, truncated, info = env.step(action)
+            fed = feed(reward, action)
+            velocity = info["x_velocity"]
+            earned = other * velocity if task == "HalfCheetah-Dir-v5" else -abs(velocity - other)
+            assert fed == pytest.approx(earned + info["reward_ctrl"]) and fed != reward
+        assert truncated
+    agent = Agent(tiny_model(("point-goal-v1",)))
+    rows, _ = evaluate(agent, EvalConfig(tasks=["point-goal-v1"], shots=2, seeds=2, reward_input="other-goal"))
+    assert {r["reward_input"] for r in rows} == {"other-goal"} and len(rows) == 4
+    with pytest.raises(VintixError, match="InvertedPendulum-v5: reward_input 'other-goal'.*use 'zero' or 'shuffled'"):
+        evaluate(Agent(tiny_model()), EvalConfig(tasks=["InvertedPendulum-v5"], shots=1, seeds=1,
+                                                 reward_input="other-goal"))
 
 
 def test_zero_and_shuffled_rewards_change_what_the_model_sees_but_returns_stay_the_envs():

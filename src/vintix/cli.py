@@ -1082,9 +1082,10 @@ def eval_command(
         help="name of this model in reports (default: checkpoint folder)")] = None,
     batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = EvalConfig.batch_envs,
     reward_input: Annotated[str, typer.Option(
-        metavar="true|zero|shuffled", help="rewards fed back to the model: the env's (true), zeros, or the episode's "
-        "own in random order (shuffled), to measure how much the rewards drive the in-context gains; scores and "
-        "success are always computed from the true returns")] = EvalConfig.reward_input,
+        metavar="true|zero|shuffled|other-goal", help="rewards fed back to the model: the env's (true), zeros, the "
+        "episode's own in random order (shuffled), or what each step would have earned under another seed's hidden "
+        "goal (other-goal), to measure how much the rewards drive the in-context gains; scores and success are "
+        "always computed from the true returns")] = EvalConfig.reward_input,
     greedy: Annotated[bool, typer.Option(
         "--greedy", help="discrete tasks: act on the argmax of the model's logits (a gaussian policy: its mean) "
         "instead of a draw; by default the policy samples, as AD and DPT are evaluated")] = EvalConfig.greedy,

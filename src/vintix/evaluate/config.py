@@ -12,7 +12,7 @@ from pathlib import Path
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
 
-REWARD_INPUTS = ("true", "zero", "shuffled")
+REWARD_INPUTS = ("true", "zero", "shuffled", "other-goal")
 """What `EvalConfig.reward_input` may feed back to the model."""
 PLATEAU_SHOTS = 10
 """k of the best-k-shot plateau: the converged score that summaries and reports give (fewer when a run has
@@ -55,9 +55,11 @@ class EvalConfig:
     batch_envs: int = 64
     """most envs stepped through one agent at once (the KV cache grows with it)"""
     reward_input: str = "true"
-    """the reward fed back to the model: 'true' (the env's), 'zero' (0.0) or 'shuffled' (at each step one
-    drawn at random from the rewards the env's current episode has returned so far); returns, success
-    and scores always come from the true rewards (the reward-use ablation). A prompt keeps its stored rewards"""
+    """the reward fed back to the model: 'true' (the env's), 'zero' (0.0), 'shuffled' (at each step one
+    drawn at random from the rewards the env's current episode has returned so far) or 'other-goal' (what each
+    step would have earned under another env seed's hidden goal; hidden-goal tasks that can price a step under
+    another goal); returns, success and scores always come from the true rewards (the reward-use ablation). A
+    prompt keeps its stored rewards"""
     ml1: bool = False
     """Meta-World's ML1 meta-test protocol (docs/evaluation.md): run i plays ML1's test goal first_seed + i instead
     of a goal drawn from its seed, for 10 adaptation episodes then 3 scored ones (shots must be 13), its score the

@@ -127,28 +127,61 @@ def _canonical(task: str) -> str | None:
 
 class RewardFeed:
     """The rewards one env's run feeds back to the model (`EvalConfig.reward_input`): the env's own,
-    zeros, or (shuffled) at each step one drawn uniformly from the rewards the current episode has
+    zeros, (shuffled) at each step one drawn uniformly from the rewards the current episode has
     returned so far, this step's included: the episode's own values, their link to the states and
-    actions that earned them broken. The draws come from a generator seeded by `seed` (the env seed),
-    so a shuffled run is reproducible."""
+    actions that earned them broken, or (other-goal) what each step would have earned under another run's
+    hidden goal (`other_goal`): rewards as consistent as the true ones, pointing elsewhere. The shuffled
+    draws come from a generator seeded by `seed` (the env seed), so a shuffled run is reproducible.
+    An other-goal feed needs the run's `task` and `env`, whose last step it prices."""
 
-    def __init__(self, reward_input: str, seed: int) -> None:
+    def __init__(self, reward_input: str, seed: int, task: str = "", env: Any = None) -> None:
         self.reward_input = reward_input
         self._episode: list[float] = []
         self._rng = np.random.default_rng((_SHUFFLE_STREAM, seed))
+        self._env = env
+        self._other = other_goal(task, seed, env) if reward_input == "other-goal" else None
 
-    def __call__(self, reward: float) -> float:
-        """What the model is told the last action earned, given the env's `reward` for it."""
+    def __call__(self, reward: float, action: Any = None) -> float:
+        """What the model is told the last action earned, given the env's `reward` for it (and, for an
+        other-goal feed, the `action`, priced before the env resets)."""
         if self.reward_input == "zero":
             return 0.0
         if self.reward_input == "shuffled":
             self._episode.append(float(reward))
             return self._episode[int(self._rng.integers(len(self._episode)))]
+        if self._other is not None:
+            return float(self._env.unwrapped.rewards_under_goals(self._other[None], action)[0])
         return float(reward)
 
     def new_episode(self) -> None:
         """Forget the finished episode's rewards."""
         self._episode.clear()
+
+
+OTHER_GOAL_SEEDS = 100
+"""How many env seeds after a run's `other_goal` looks through for a goal unlike its own."""
+
+
+def other_goal(task: str, seed: int, env: Any) -> np.ndarray:
+    """The hidden goal of the first env seed after `seed` whose goal differs from `env`'s own (on a direction
+    task, the other direction): what an other-goal feed prices each step under. `env` must be able to price a
+    step under another goal (`rewards_under_goals`, as the hidden-goal tasks whose demonstrators infer it)."""
+    inner = env.unwrapped
+    if not hasattr(inner, "rewards_under_goals") or not hasattr(inner, "true_goal"):
+        raise VintixError(f"{task}: reward_input 'other-goal' feeds the rewards of another hidden goal, and this "
+                          "task's env cannot price a step under another goal (rewards_under_goals); use 'zero' or "
+                          "'shuffled'")
+    own = inner.true_goal
+    for other_seed in range(seed + 1, seed + 1 + OTHER_GOAL_SEEDS):
+        other: Any = make_env(task, seed=other_seed)  # a hidden-goal env says its true_goal
+        try:
+            goal = np.asarray(other.unwrapped.true_goal, dtype=np.float64)
+        finally:
+            other.close()
+        if not np.allclose(goal, own):
+            return goal
+    raise VintixError(f"{task}: env seeds {seed + 1}-{seed + OTHER_GOAL_SEEDS} all draw the goal of seed {seed}, so "
+                      "there is no other goal to feed; use 'zero' or 'shuffled'")
 
 
 def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], shots: int,
@@ -172,6 +205,7 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
         actions = agent.act([observations[i] for i in active], rewards[active], starts[active], deterministic=greedy)
         for i, action in zip(active, actions, strict=True):
             observation, reward, terminated, truncated, info = envs[i].step(action)
+            fed = feeds[i](reward, action)  # before a reset: an other-goal feed prices this step's state
             returns[i] += reward
             lengths[i] += 1
             if "success" in info:
@@ -180,11 +214,11 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
                 episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i], observation))
                 bar.update(1)
                 observation, _ = envs[i].reset()
-                rewards[i], starts[i] = feeds[i](reward), True  # the last reward (`ModelConfig.last_reward`)
+                rewards[i], starts[i] = fed, True  # the last reward (`ModelConfig.last_reward`)
                 feeds[i].new_episode()
                 returns[i], lengths[i], success[i] = 0.0, 0, None
             else:
-                rewards[i], starts[i] = feeds[i](reward), False
+                rewards[i], starts[i] = fed, False
             observations[i] = observation
         playing = [j for j, i in enumerate(active) if len(episodes[i]) < shots]
         if len(playing) < len(active):
@@ -250,7 +284,8 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
-        feeds = [RewardFeed(config.reward_input, seed) for _, seed in batch]
+        feeds = [RewardFeed(config.reward_input, seed, spec.name, env) for (spec, seed), env in zip(batch, envs,
+                                                                                                  strict=True)]
         last_prompt_rewards = None if prompts is None else np.array([p.rows["reward"][-1] for p in prompts])
         results = play_shots(agent, envs, feeds, config.shots, progress, last_prompt_rewards, config.greedy)
     finally:
