@@ -11,6 +11,8 @@ import os
 import re
 import shutil
 import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import h5py
@@ -41,6 +43,7 @@ from vintix.train import (
     learning_rate,
     load_config,
     load_training_data,
+    trainer,
 )
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
@@ -50,7 +53,7 @@ from vintix.train.checkpoint import (
     prune_checkpoints,
     read_training_state,
 )
-from vintix.train.trainer import Selection, training_threads
+from vintix.train.trainer import Selection, busy_cores, training_threads
 
 # A model small enough for a few dozen CPU steps in seconds; 128-step windows hold 1-2 episodes.
 TEST_MODEL = dict(n_layers=2, n_heads=2, obs_emb_dim=15, act_emb_dim=15, rew_emb_dim=2, mlp_dim=64,
@@ -381,14 +384,29 @@ def test_a_stop_signal_saves_the_step_it_ends_and_says_how_to_resume(metaworld_d
     assert resumed.step == 3 and read_training_state(resumed.run())["step"] == 8
 
 
-def test_training_threads_are_the_ones_asked_for_or_the_idle_cores(monkeypatch):
+def test_training_threads_are_the_ones_asked_for_or_the_cores_idle_now(monkeypatch):
     assert training_threads(3, world_size=1) == 3
+    cores = len(os.sched_getaffinity(0))
+    # Another process busy now (runnable, whether or not it has a core): one core fewer, at least one.
+    busy = subprocess.Popen([sys.executable, "-c", "print('spinning', flush=True)\nwhile True: pass"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert busy.stdout is not None and busy.stdout.readline() == "spinning\n"
+        assert busy_cores() >= 0.5
+        assert training_threads(0, world_size=1) <= max(1, cores - 1)
+    finally:
+        busy.kill()
+        busy.wait()
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
-    monkeypatch.setattr(os, "getloadavg", lambda: (1.2, 0.0, 0.0))
+    monkeypatch.setattr(trainer, "busy_cores", lambda: 1.2)
     assert training_threads(0, world_size=1) == 3  # one core busy elsewhere: the other three
     assert training_threads(0, world_size=2) == 1  # shared between two ranks
-    monkeypatch.setattr(os, "getloadavg", lambda: (9.0, 0.0, 0.0))
+    monkeypatch.setattr(trainer, "busy_cores", lambda: 9.0)
     assert training_threads(0, world_size=1) == 1  # an overloaded machine: never 0 or fewer
+    # Without /proc: the 1-minute load average.
+    monkeypatch.setattr(trainer, "busy_cores", lambda: None)
+    monkeypatch.setattr(os, "getloadavg", lambda: (2.2, 0.0, 0.0))
+    assert training_threads(0, world_size=1) == 2
 
 
 def test_a_run_without_selections_promises_none(metaworld_data, tmp_path, capsys):

@@ -848,8 +848,8 @@ def train_command(
         "--set", metavar="FIELD=VALUE",
         help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
     threads: Annotated[int | None, typer.Option(
-        min=0, max=MAX_THREADS, help="torch CPU threads per training process (0: the cores the load average leaves "
-        "idle; default: the config's threads, which is 0 unless it says otherwise)")] = None,
+        min=0, max=MAX_THREADS, help="torch CPU threads per training process (0: the cores other work leaves "
+        "idle now; default: the config's threads, which is 0 unless it says otherwise)")] = None,
 ) -> None:
     """Train (or resume) a model by Algorithm Distillation.
 

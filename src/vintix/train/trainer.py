@@ -212,15 +212,34 @@ def resolve_device(name: str, local_rank: int) -> torch.device:
     return torch.device("cuda", local_rank) if use_cuda else torch.device("cpu")
 
 
+def busy_cores(samples: int = 10, interval: float = 0.02) -> float | None:
+    """How many cores other work keeps busy now: the runnable threads /proc/loadavg counts, less the one reading
+    it, averaged over `samples` reads `interval` seconds apart; None without /proc/loadavg (not Linux). The
+    1-minute load average would instead still count a job that ended seconds ago, such as the collection a
+    script runs just before training."""
+    path = Path("/proc/loadavg")
+    if not path.is_file():
+        return None
+    counts = []
+    for i in range(samples):
+        if i:
+            time.sleep(interval)
+        counts.append(int(path.read_text().split()[3].split("/")[0]) - 1)  # "running/total"
+    return sum(counts) / samples
+
+
 def training_threads(requested: int, world_size: int) -> int:
-    """torch CPU threads for one of `world_size` training processes: `requested`, or (0) the cores the 1-minute load
-    average leaves idle, shared among the processes, at least one. A second thread on a core another job keeps busy
-    slows the many small ops of a small model down instead of speeding them up."""
+    """torch CPU threads for one of `world_size` training processes: `requested`, or (0) the cores that other work
+    leaves idle now (`busy_cores`; without /proc, by the 1-minute load average), shared among the processes, at
+    least one. A second thread on a core another job keeps busy slows the many small ops of a small model down
+    instead of speeding them up."""
     if requested:
         return requested
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    idle = cores - round(os.getloadavg()[0]) if hasattr(os, "getloadavg") else cores
-    return max(1, min(cores, idle) // world_size)
+    busy = busy_cores()
+    if busy is None:
+        busy = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    return max(1, min(cores, cores - round(busy)) // world_size)
 
 
 def init_distributed(device_name: str) -> tuple[Distributed, torch.device]:
