@@ -36,6 +36,26 @@ mkdir -p "$W/keytodoor-episodereturn" && cp -rn "$W/keytodoor-randomstart/data" 
 scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml $R/keytodoor-episodereturn/config.yaml \
   KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-episodereturn"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
+# Key-to-Door prompted with its search demonstrator's first 150 steps (its rewards kept, then zeroed), 20 held-out pairs
+vintix collect --recipe $R/keytodoor-prompted/recipe.yaml --out "$W/keytodoor-prompted/data" --workers 1
+cp -r "$W/keytodoor-prompted/data" "$W/keytodoor-prompted/data-zeroed"
+python - "$W/keytodoor-prompted/data-zeroed" <<'PY'
+import sys
+from pathlib import Path
+import h5py
+def zero_rewards(name, dataset):
+    if name.endswith("/reward"):
+        dataset[...] = 0
+for path in Path(sys.argv[1]).glob("icrl/*/*.h5"):
+    with h5py.File(path, "r+") as f:
+        f.visititems(zero_rewards)
+PY
+for model in keytodoor-lastaction keytodoor-search; do
+  for prompt in data data-zeroed; do
+    vintix eval --checkpoint "$W/$model/run" --tasks KeyToDoor-heldout-v0 --shots 10 --seeds 20 --first-seed 100 \
+      --prompt-from "$W/keytodoor-prompted/$prompt" --prompt-steps 150 --out "$W/keytodoor-prompted/$model-${prompt/data/prompt}"
+  done
+done
 cell bandit-ad bandit BernoulliBandit-v0                      # the shipped bandit
 cell bandit-adeps bandit BernoulliBandit-v0
 cell bandit-posterior bandit BernoulliBandit-v0
