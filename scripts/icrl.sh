@@ -13,7 +13,8 @@
 # the expert-distillation one (the same model trained on the goal-aware expert's histories of the same
 # goals, recipe NAME-expert, evaluated with true, zero and shuffled rewards too). Set RECIPE to collect
 # another recipe (a name or a YAML file) and train it with config NAME, CHECKPOINT (e.g. step-00009000) to
-# evaluate that checkpoint of each run instead of the one its in-context selection kept.
+# evaluate that checkpoint of each run instead of the one its in-context selection kept, OTHER_GOAL=1 to also feed
+# the hidden-goal runs what each step would have earned under another seed's goal (`--reward-input other-goal`).
 set -euo pipefail
 NAME=${1:?usage: scripts/icrl.sh icrl-reach|icrl-suite [WORK_DIR]}
 W=${2:-$NAME}
@@ -42,7 +43,7 @@ evaluate() {
 
 $V collect --recipe "${RECIPE:-$NAME}" --out "$W/data" --workers 2
 $V train --config "$NAME" --data "$W/data" --out "$W/runs/ad"
-evaluate ad AD true zero shuffled
+evaluate ad AD true zero shuffled ${OTHER_GOAL:+other-goal}
 if [[ -n $VISIBLE ]]; then
   for rewards in true zero; do
     $V eval --checkpoint "$(model ad)" --label "AD, visible tasks ($rewards rewards)" --tasks "$VISIBLE" --shots 10 \

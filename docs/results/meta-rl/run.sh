@@ -9,13 +9,10 @@ cd "$(dirname "$0")/../../.."
 W=${1:-work/meta-mujoco}
 vintix collect --recipe meta-mujoco --out "$W/data" --workers 2
 vintix train --config meta-mujoco --data "$W/data" --out "$W/runs/ad" --threads 2
-SHOTS=40 scripts/icrl.sh meta-mujoco "$W"   # the evaluations and the report (collection and training are done)
-# and fed another seed's rewards: what each step would have earned under another target (the other direction)
-vintix eval --checkpoint "$W/runs/ad" --tasks HalfCheetah-Vel-v5,HalfCheetah-Dir-v5,Ant-Dir-v5 --shots 40 --seeds 20 \
-  --first-seed 100 --reference ours --reward-input other-goal --out "$W/results/ad-other-goal"
-ablations=("$W/results/ad-true" "$W/results/ad-zero" "$W/results/ad-shuffled" "$W/results/ad-other-goal")
-vintix report "${ablations[@]}" --reference ours --out "$W/report"
-vintix report "${ablations[@]}" --reference ours --gap-shots 2-10 --out "$W/report-2-10"   # gaps over episodes 2-10
+# the evaluations (true, zero, shuffled and another seed's rewards: what each step would have earned under another
+# target, the other direction) and the report; collection and training are done
+OTHER_GOAL=1 SHOTS=40 scripts/icrl.sh meta-mujoco "$W"
+vintix report "$W"/results/ad-{true,zero,shuffled,other-goal} --reference ours --gap-shots 2-10 --out "$W/report-2-10"
 # HalfCheetah-Vel: mean x-velocity per half-episode of the selected model, 4 seeds, 4 episodes (the README's table)
 python - "$W/runs/ad/checkpoints/best" <<'PY'
 import sys
