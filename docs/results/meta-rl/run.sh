@@ -14,24 +14,4 @@ vintix train --config meta-mujoco --data "$W/data" --out "$W/runs/ad" --threads 
 OTHER_GOAL=1 SHOTS=40 scripts/icrl.sh meta-mujoco "$W"
 vintix report "$W"/results/ad-{true,zero,shuffled,other-goal} --reference ours --gap-shots 2-10 --out "$W/report-2-10"
 # HalfCheetah-Vel: mean x-velocity per half-episode of the selected model, 4 seeds, 4 episodes (the README's table)
-python - "$W/runs/ad/checkpoints/best" <<'PY'
-import sys
-import numpy as np
-from vintix.agent import Agent
-from vintix.tasks import make_env
-agent = Agent.from_pretrained(sys.argv[1], threads=1)
-for seed in (113, 102, 105, 100):
-    env = make_env("HalfCheetah-Vel-v5", seed=seed)
-    agent.reset(["HalfCheetah-Vel-v5"], [env.action_space], discard_context=True)
-    halves = []
-    for _ in range(4):
-        obs, _ = env.reset()
-        reward, start, speeds = 0.0, True, []
-        for _ in range(200):
-            action, _ = agent.predict(obs, reward, start)
-            obs, reward, terminated, truncated, info = env.step(action)
-            start = False
-            speeds.append(info["x_velocity"])
-        halves.append(f"{np.mean(speeds[:100]):.2f}, {np.mean(speeds[100:]):.2f}")
-    print(f"target {env.unwrapped.true_goal[0]:.2f}:", " | ".join(halves))
-PY
+python docs/results/meta-rl/vel_speeds.py "$W/runs/ad/checkpoints/best"
