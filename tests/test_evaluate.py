@@ -32,7 +32,7 @@ from vintix.evaluate import (
     select_tasks,
     shots_to_show,
 )
-from vintix.evaluate.run import RewardFeed, other_goal, play_shots
+from vintix.evaluate.run import RewardFeed, other_goal, other_goal_reward, play_shots
 from vintix.model import save_pretrained
 from vintix.tasks import make_env
 from vintix.train import ConfigError, TrainConfig
@@ -249,7 +249,7 @@ def test_an_other_goal_feed_tells_the_model_what_each_step_would_earn_under_anot
         env = make_env(task, seed=100)
         other = float(other_goal(task, 100, env)[0])
         assert other == float(make_env(task, seed=101).unwrapped.true_goal[0]) != env.unwrapped.true_goal[0]
-        feed = RewardFeed("other-goal", 100, task, env)
+        feed = RewardFeed("other-goal", 100, other_goal_reward(task, 100, env))
         env.reset()
         for action in np.random.default_rng(0).uniform(-1, 1, (200, 6)):
             _, reward, terminated, truncated, info = env.step(action)

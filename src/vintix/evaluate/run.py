@@ -130,16 +130,17 @@ class RewardFeed:
     zeros, (shuffled) at each step one drawn uniformly from the rewards the current episode has
     returned so far, this step's included: the episode's own values, their link to the states and
     actions that earned them broken, or (other-goal) what each step would have earned under another run's
-    hidden goal (`other_goal`): rewards as consistent as the true ones, pointing elsewhere. The shuffled
-    draws come from a generator seeded by `seed` (the env seed), so a shuffled run is reproducible.
-    An other-goal feed needs the run's `task` and `env`, whose last step it prices."""
+    hidden goal (`other_goal_reward`, which an other-goal feed is given): rewards as consistent as the true ones,
+    pointing elsewhere. The shuffled draws come from a generator seeded by `seed` (the env seed), so a shuffled
+    run is reproducible."""
 
-    def __init__(self, reward_input: str, seed: int, task: str = "", env: Any = None) -> None:
+    def __init__(self, reward_input: str, seed: int, other_goal: Callable[[Any], float] | None = None) -> None:
+        if (reward_input == "other-goal") != (other_goal is not None):
+            raise ValueError("an other-goal feed, and only it, takes the other goal's reward (other_goal_reward)")
         self.reward_input = reward_input
         self._episode: list[float] = []
         self._rng = np.random.default_rng((_SHUFFLE_STREAM, seed))
-        self._env = env
-        self._other = other_goal(task, seed, env) if reward_input == "other-goal" else None
+        self._other_goal = other_goal
 
     def __call__(self, reward: float, action: Any = None) -> float:
         """What the model is told the last action earned, given the env's `reward` for it (and, for an
@@ -149,8 +150,8 @@ class RewardFeed:
         if self.reward_input == "shuffled":
             self._episode.append(float(reward))
             return self._episode[int(self._rng.integers(len(self._episode)))]
-        if self._other is not None:
-            return float(self._env.unwrapped.rewards_under_goals(self._other[None], action)[0])
+        if self._other_goal is not None:
+            return self._other_goal(action)
         return float(reward)
 
     def new_episode(self) -> None:
@@ -182,6 +183,12 @@ def other_goal(task: str, seed: int, env: Any) -> np.ndarray:
             return goal
     raise VintixError(f"{task}: env seeds {seed + 1}-{seed + OTHER_GOAL_SEEDS} all draw the goal of seed {seed}, so "
                       "there is no other goal to feed; use 'zero' or 'shuffled'")
+
+
+def other_goal_reward(task: str, seed: int, env: Any) -> Callable[[Any], float]:
+    """What an action `env` just took would have earned under `other_goal`'s goal: an other-goal feed's rewards."""
+    goal, inner = other_goal(task, seed, env)[None], env.unwrapped
+    return lambda action: float(inner.rewards_under_goals(goal, action)[0])
 
 
 def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], shots: int,
@@ -284,8 +291,9 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
-        feeds = [RewardFeed(config.reward_input, seed, spec.name, env) for (spec, seed), env in zip(batch, envs,
-                                                                                                  strict=True)]
+        feeds = [RewardFeed(config.reward_input, seed, other_goal_reward(spec.name, seed, env)
+                            if config.reward_input == "other-goal" else None)
+                 for (spec, seed), env in zip(batch, envs, strict=True)]
         last_prompt_rewards = None if prompts is None else np.array([p.rows["reward"][-1] for p in prompts])
         results = play_shots(agent, envs, feeds, config.shots, progress, last_prompt_rewards, config.greedy)
     finally:
