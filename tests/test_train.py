@@ -162,6 +162,27 @@ def test_resume_into_a_different_model_config_is_refused(metaworld_data, tmp_pat
         Trainer(make_config(metaworld_data, out, tasks=["reach-v3"]))
 
 
+def test_fine_tuning_starts_from_a_models_weights_with_fresh_groups_for_tasks_it_never_had(metaworld_data, tmp_path,
+                                                                                           capsys):
+    source = tmp_path / "source"
+    Trainer(make_config(metaworld_data, source, max_steps=2)).run()
+    data = tmp_path / "data"  # the same Meta-World histories, and a MuJoCo task of a group the source lacks
+    shutil.copytree(metaworld_data, data)
+    collect([CollectionPlan("Reacher-v5", histories=1, steps=100, envs_per_batch=1)], data)
+    tuned = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source)))
+    assert "fresh: group mujoco-reacher" in capsys.readouterr().out
+    start, trained = load_pretrained(model_directory(source)), dict(tuned.model.named_parameters())
+    for name, value in start.named_parameters():
+        assert torch.equal(trained[name], value), name  # the trunk and the Meta-World encoder and head
+    assert tuned.model.obs_mean.shape[0] == 3  # statistics of this run's three tasks, not the source's two
+    untrained = Trainer(make_config(data, tmp_path / "scratch", tasks=[]))
+    assert not torch.equal(untrained.model.blocks[0].mlp.fc.weight, trained["blocks.0.mlp.fc.weight"])
+    with pytest.raises(ConfigError, match=r"init_from .*source: its model settings are not this run's \(mlp_dim 32 "
+                                          r"here, 64 there\)"):
+        Trainer(make_config(data, tmp_path / "other", model_overrides={**TEST_MODEL, "mlp_dim": 32},
+                            init_from=str(source)))
+
+
 def test_a_checkpoint_from_before_a_model_field_existed_resumes_with_that_fields_default(metaworld_data, tmp_path):
     out, paper_layout = tmp_path / "run", {**TEST_MODEL, "last_reward": False}
     Trainer(make_config(metaworld_data, out, max_steps=1, model_overrides=paper_layout)).run()

@@ -242,6 +242,28 @@ def training_threads(requested: int, world_size: int) -> int:
     return max(1, min(cores, cores - round(busy)) // world_size)
 
 
+def start_from_pretrained(model: Vintix, name_or_path: str) -> list[str]:
+    """Copy into `model` the weights of the model `name_or_path` names (`resolve_checkpoint`) wherever a parameter
+    has the same name and shape, for fine-tuning; return the groups whose encoder or head keeps its fresh
+    initialization, the ones that model lacks. Parameters only: buffers (the tasks' normalization statistics) stay
+    this run's data's. Both must share their model settings: a shared trunk's weights mean nothing in another
+    architecture."""
+    from vintix.agent.pretrained import resolve_checkpoint  # vintix.agent imports this package's checkpoints
+
+    source = load_pretrained(resolve_checkpoint(name_or_path))
+    differ = [f"{name} {value} here, {getattr(source.config, name)} there"
+              for name, value in dataclasses.asdict(model.config).items() if getattr(source.config, name) != value]
+    if differ:
+        raise ConfigError(f"init_from {name_or_path}: its model settings are not this run's ({'; '.join(differ)}); "
+                          "train with its preset and model_overrides, or from scratch")
+    target = dict(model.named_parameters())
+    with torch.no_grad():
+        for name, value in source.named_parameters():
+            if name in target and target[name].shape == value.shape:
+                target.pop(name).copy_(value)
+    return sorted({name.split(".")[1] for name in target})  # encoders.<group>.… and heads.<group>.…
+
+
 def init_distributed(device_name: str) -> tuple[Distributed, torch.device]:
     """Join the ``torchrun`` process group if there is one (its env vars say so)."""
     world_size = int(os.environ.get("WORLD_SIZE", "1"))
@@ -409,6 +431,11 @@ class Trainer:
                 )
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
             self.model = load_pretrained(resume)
+        elif config.init_from is not None:
+            fresh = start_from_pretrained(self.model, config.init_from)
+            if self.dist.is_main:
+                print(f"starting from {config.init_from}'s weights; fresh: "
+                      + (", ".join(f"group {name}" for name in fresh) or "nothing"))
         self.model.to(self.device).train()
         self.optimizer, self.param_names = build_optimizer(self.model, config)
         self.loss_module: nn.Module = WindowLoss(self.model)
