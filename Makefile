@@ -47,8 +47,9 @@ demo: $(INSTALLED)
 	echo "What the rewards do (true − zero fed back, 95 % CI; reports under $(DEMO)/report):"; \
 	for run in $(DEMO_RUNS); do grep -h "^reward-use gap: " $(DEMO)/logs/$${run%%:*}-report.log; done
 
+# It ends with the 15 slowest tests: where the suite's minutes go.
 test: $(INSTALLED)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=15
 
 # Everything but the minutes-long end-to-end runs (tests marked slow): for the edit-test loop; CI runs make test.
 test-fast: $(INSTALLED)
