@@ -6,9 +6,10 @@ import pytest
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.data import LearningHistory
 from vintix.demonstrators import load_demonstrator
+from vintix.demonstrators.icrl import WALK_PERSISTENCE
 from vintix.errors import VintixError
 from vintix.tasks import get_task, list_tasks, make_env
-from vintix.tasks.icrl import START, goal_split, pair_split
+from vintix.tasks.icrl import MOVES, SIZE, START, goal_split, pair_split
 
 
 def play(env, actions):
@@ -144,6 +145,26 @@ def test_the_reward_inferring_demonstrator_reaches_the_optimum_within_a_few_epis
     returns = normalized_returns(tmp_path, task)
     assert returns[:, 0].mean() < 0.7  # it has to search first...
     assert returns[:, 15:].mean() >= (0.85 if task == "BernoulliBandit-v0" else 0.99)  # ...then it has found it
+
+
+def test_the_walk_search_moves_as_its_position_and_last_move_say_then_goes_straight_to_what_it_found(tmp_path):
+    """`walk-search`: until a reward shows the key, every move leaves the cell (no wall bumped, never staying) and
+    repeats the last one about `WALK_PERSISTENCE` of the time; once the key and the door are found, episodes are
+    optimal. Slower than the spiral search, but no move depends on how far earlier episodes got."""
+    task = "KeyToDoor-heldout-v0"
+    collect(CollectionPlan(task, histories=20, steps=40 * 50, behaviour="walk-search",
+                           schedule=NoiseSchedule(noise_free_fraction=1.0)), tmp_path)
+    returns = normalized_returns(tmp_path, task, 40)
+    assert returns[:, 0].mean() < 0.5 and returns[:, 25:40].mean() >= 0.95
+    repeats = []
+    for path in sorted((tmp_path / "icrl" / task).glob("*.h5")):
+        rows = LearningHistory(path).read(0, 50)
+        searching = slice(0, int(np.argmax(rows["reward"] > 0)) or 50)  # the first episode, up to the key
+        positions, actions = rows["observation"][searching], rows["action"][searching]
+        after = np.clip(positions + MOVES[actions], 0, SIZE - 1)
+        assert (actions != 0).all() and (after != positions).any(axis=1).all()  # every move leaves the cell
+        repeats.extend(actions[1:] == actions[:-1])
+    assert abs(np.mean(repeats) - WALK_PERSISTENCE) < 0.1  # turns forced at walls add to the random ones
 
 
 def test_ad_eps_histories_rise_from_random_to_optimal_and_record_the_experts_action(tmp_path):

@@ -25,14 +25,16 @@ class Demonstrator(Protocol):
         ...
 
 
-BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample", "learner", "posterior-search")
+BEHAVIOURS = ("expert", "posterior-sampling", "probing", "probe-then-sample", "learner", "posterior-search",
+              "walk-search")
 """How a demonstrator plays a history: as the goal-aware expert, or without the goal, inferring it from
 rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn from its posterior;
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert);
 'posterior-search': the goals not ruled out, searched in a fixed order across episodes, for sparse rewards (on the
-discrete benchmarks, `vintix.demonstrators.icrl`, the cells along a spiral). 'learner' (the discrete benchmarks
-only): an RL algorithm learning from scratch, AD's own histories."""
+discrete benchmarks, `vintix.demonstrators.icrl`, the cells along a spiral); 'walk-search' (their rooms only): a
+random walk until a reward shows the goal. 'learner' (the discrete benchmarks only): an RL algorithm learning from
+scratch, AD's own histories."""
 PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
 AIMS = ("hand", "gripper-centre")
@@ -97,11 +99,11 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
             raise VintixError(f"{spec.name!r} is a discrete benchmark: its demonstrators play as "
                               f"{', '.join(ICRL_BEHAVIOURS)} (vintix.demonstrators.icrl) and take no weights, aim or "
                               f"reward_tolerance; got behaviour {behaviour!r}")
-        if behaviour == "posterior-search" and spec.group == "bernoulli-bandit":
-            raise VintixError(f"{spec.name!r}: posterior-search walks a room's cells; on a bandit use "
+        if behaviour in ("posterior-search", "walk-search") and spec.group == "bernoulli-bandit":
+            raise VintixError(f"{spec.name!r}: {behaviour} walks a room's cells; on a bandit use "
                               "posterior-sampling (Thompson sampling)")
         return icrl_demonstrator(behaviour)
-    if behaviour == "learner":
+    if behaviour in ("learner", "walk-search"):
         raise VintixError(f"{spec.name!r}: behaviour {behaviour!r} exists for the discrete benchmarks (domain icrl: "
                           "Dark Room, Key-to-Door, the bandit); choose another")
     if behaviour != "expert":

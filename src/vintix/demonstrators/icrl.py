@@ -13,6 +13,10 @@
   ruled out along a spiral out of the room's centre (`SEARCH_ORDER`), so each episode goes on where the last one
   stopped, and its whole behaviour is a function of the rewards so far, with nothing drawn at random for a model to
   guess.
+- ``walk-search`` (the rooms): searches by a persistent random walk (`WALK_PERSISTENCE`) and goes straight to what
+  its rewards have shown. Slower than the spiral, but each move follows from what a model sees at that step: the
+  position, the last move and the rewards so far, where the spiral's next cell depends on how far the search got
+  in earlier episodes.
 - ``learner``: AD's own histories, an RL algorithm learning from scratch on the history's env: tabular Q-learning
   in the rooms (its state: the cell and whether the episode has paid yet, which tells Key-to-Door's "key in
   hand" from its own rewards), UCB1 on the bandit (AD's source algorithm there).
@@ -29,9 +33,19 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from vintix.tasks.icrl import SIZE, START, BernoulliBanditEnv, DarkRoomEnv, GridEnv, KeyToDoorEnv, cells, step_towards
+from vintix.tasks.icrl import (
+    MOVES,
+    SIZE,
+    START,
+    BernoulliBanditEnv,
+    DarkRoomEnv,
+    GridEnv,
+    KeyToDoorEnv,
+    cells,
+    step_towards,
+)
 
-ICRL_BEHAVIOURS = ("expert", "posterior-sampling", "posterior-search", "learner")
+ICRL_BEHAVIOURS = ("expert", "posterior-sampling", "posterior-search", "walk-search", "learner")
 """How a demonstrator plays a discrete benchmark's history (this module's docstring)."""
 
 
@@ -73,6 +87,15 @@ def spiral_order() -> np.ndarray:
 
 SEARCH_ORDER = spiral_order()
 """The order in which `posterior-search` walks the cells its rewards have not ruled out."""
+SEARCHES = ("sample", "spiral", "walk")
+"""How a room's demonstrator looks for what its rewards have not shown yet: walk to a candidate drawn from the
+posterior (``posterior-sampling``), to the next along `SEARCH_ORDER` (``posterior-search``), or a random walk
+(``walk-search``)."""
+WALK_PERSISTENCE = 0.7
+"""`walk-search`'s chance of repeating its last move where no wall stops it (else a move drawn among those that
+do not bump into one). Of 0, 0.5, 0.7, 0.85 and 0.95 it found Key-to-Door's key and door soonest in a quick
+simulation; the demonstrator on the first 100 held-out pairs scores 0.23, 0.46, 0.82, 0.96 and 1.00 of optimal in
+episodes 1, 2, 5, 10 and 20 (the spiral's `posterior-search`: 0.36, 0.78, 1.00, 1.00, 1.00)."""
 
 
 def _cell(position: np.ndarray) -> int:
@@ -93,19 +116,33 @@ class _RoomSearch:
     """[2, cells]: row 0 the goal (Key-to-Door: the key), row 1 Key-to-Door's door"""
     found: list[int | None]
     target: list[int | None]
-    in_order: bool = False
-    """walk to the first cell not ruled out along `SEARCH_ORDER` (``posterior-search``) rather than one drawn at
-    random"""
+    search: str = "sample"
+    """one of `SEARCHES`"""
+    last_move: int = 0
+    """the move just taken (0, staying, at an episode's start)"""
     paid: bool = False
     """whether this episode has paid yet (Key-to-Door: the key is in hand)"""
 
     @classmethod
-    def new(cls, rng: np.random.Generator, in_order: bool = False) -> _RoomSearch:
-        return cls(rng, np.zeros((2, SIZE * SIZE), bool), [None, None], [None, None], in_order)
+    def new(cls, rng: np.random.Generator, search: str = "sample") -> _RoomSearch:
+        return cls(rng, np.zeros((2, SIZE * SIZE), bool), [None, None], [None, None], search)
 
     def stage(self, env: GridEnv) -> int:
         """0 while looking for the goal (the key), 1 for Key-to-Door's door with the key in hand."""
         return int(isinstance(env, KeyToDoorEnv) and self.paid)
+
+    def move(self, env: GridEnv) -> int:
+        """The action: straight to what a reward has shown, else the search's next move."""
+        if self.search == "walk" and self.found[self.stage(env)] is None:
+            return self._walk(env.position)
+        return int(step_towards(env.position, self.aim(env)))
+
+    def _walk(self, position: np.ndarray) -> int:
+        inside = ((position + MOVES >= 0) & (position + MOVES < SIZE)).all(axis=1)
+        inside[0] = False  # staying put searches nothing
+        if not (inside[self.last_move] and self.rng.random() < WALK_PERSISTENCE):
+            self.last_move = int(self.rng.choice(np.flatnonzero(inside)))
+        return self.last_move
 
     def aim(self, env: GridEnv) -> np.ndarray:
         stage = self.stage(env)
@@ -114,14 +151,17 @@ class _RoomSearch:
         target = self.target[stage]
         if target is None or self.ruled_out[stage, target]:
             # The posterior is uniform over the cells not ruled out: draw one to walk to, or take the next in order.
-            if self.in_order:
+            if self.search == "spiral":
                 target = int(SEARCH_ORDER[np.argmax(~self.ruled_out[stage, SEARCH_ORDER])])
             else:
                 target = int(self.rng.choice(np.flatnonzero(~self.ruled_out[stage])))
             self.target[stage] = target
         return _position(target)
 
-    def observe(self, env: GridEnv, reward: float, episode_end: bool) -> None:
+    def observe(self, env: GridEnv, action: int, reward: float, episode_end: bool) -> None:
+        # The walk persists in the move taken, noise included: the one a model sees in its context. A new episode
+        # starts without one, as the model's context marks it.
+        self.last_move = 0 if episode_end else action
         cell, stage = _cell(env.position), self.stage(env)
         if reward > 0 and self.found[stage] is None:
             self.found[stage] = cell
@@ -137,12 +177,11 @@ class _RoomSearch:
 
 
 class PosteriorSearchDemonstrator:
-    """Infers the hidden goal from its rewards (this module's docstring): in a room, a search over the cells not
-    ruled out, to a candidate drawn at random or (`in_order`) the next along `SEARCH_ORDER`; on a bandit, Thompson
-    sampling."""
+    """Infers the hidden goal from its rewards (this module's docstring): in a room, a search (`search`, one of
+    `SEARCHES`) for what its rewards have not shown yet, then straight to it; on a bandit, Thompson sampling."""
 
-    def __init__(self, in_order: bool = False) -> None:
-        self.in_order = in_order
+    def __init__(self, search: str = "sample") -> None:
+        self.search = search
         self._rooms: list[_RoomSearch] = []
         self._arms: list[np.ndarray] = []
         """per bandit history: [arms, 2] successes and failures"""
@@ -150,10 +189,10 @@ class PosteriorSearchDemonstrator:
 
     def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
         self._rngs = list(rngs)
-        if self.in_order and any(isinstance(env.unwrapped, BernoulliBanditEnv) for env in envs):
-            raise ValueError("posterior-search walks a room's cells; on a bandit use posterior-sampling (Thompson "
-                             "sampling)")
-        self._rooms = [_RoomSearch.new(rng, self.in_order) for rng in rngs]
+        if self.search != "sample" and any(isinstance(env.unwrapped, BernoulliBanditEnv) for env in envs):
+            raise ValueError(f"a {self.search} search walks a room's cells; on a bandit use posterior-sampling "
+                             "(Thompson sampling)")
+        self._rooms = [_RoomSearch.new(rng, self.search) for rng in rngs]
         self._arms = [np.zeros((_actions(env), 2)) for env in envs]
 
     def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
@@ -164,8 +203,7 @@ class PosteriorSearchDemonstrator:
                 draws = self._rngs[i].beta(1 + self._arms[i][:, 0], 1 + self._arms[i][:, 1])
                 actions.append(int(np.argmax(draws)))
             else:
-                room = _room(env)
-                actions.append(int(step_towards(room.position, self._rooms[i].aim(room))))
+                actions.append(self._rooms[i].move(_room(env)))
         return np.array(actions, dtype=np.int64)
 
     def observe(self, env_index: int, env: gym.Env, action: np.ndarray, reward: float, episode_end: bool) -> None:
@@ -173,7 +211,7 @@ class PosteriorSearchDemonstrator:
         if isinstance(inner, BernoulliBanditEnv):
             self._arms[env_index][int(action), 0 if reward > 0 else 1] += 1
         else:
-            self._rooms[env_index].observe(_room(env), reward, episode_end)
+            self._rooms[env_index].observe(_room(env), int(action), reward, episode_end)
 
     def expert_act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         return _expert_actions(envs)
@@ -260,7 +298,7 @@ class LearnerDemonstrator:
 
 def icrl_demonstrator(behaviour: str) -> IcrlExpert | PosteriorSearchDemonstrator | LearnerDemonstrator:
     """The demonstrator of a discrete benchmark that plays as `behaviour` (one of `ICRL_BEHAVIOURS`)."""
-    if behaviour == "posterior-search":
-        return PosteriorSearchDemonstrator(in_order=True)
+    if behaviour in ("posterior-search", "walk-search"):
+        return PosteriorSearchDemonstrator(search="spiral" if behaviour == "posterior-search" else "walk")
     return {"expert": IcrlExpert, "posterior-sampling": PosteriorSearchDemonstrator,
             "learner": LearnerDemonstrator}[behaviour]()
