@@ -198,6 +198,16 @@ def test_the_shipped_darkroom_model_reads_its_rewards_on_goals_it_never_saw():
     assert late["true"] > late["zero"] + 0.3 and late["zero"] < 0.1, late
 
 
+def test_the_shipped_keytodoor_model_reads_its_rewards_on_pairs_it_never_saw():
+    """`keytodoor` (its TRAINING.md): on 16 held-out (key, door) pairs its episodes 9-12 earn about 0.6 of the
+    optimum with its rewards fed back, about a quarter fed zeros (it walks, and finds the key now and then)."""
+    agent = Agent.from_pretrained("keytodoor", threads=1)
+    runs = {feed: evaluate_shots(agent, "KeyToDoor-heldout-v0", shots=12, seeds=16, first_seed=100, reward_input=feed)
+            for feed in ("true", "zero")}
+    late = {feed: float(np.nanmean(r.scores[:, 8:])) for feed, r in runs.items()}
+    assert late["true"] > late["zero"] + 0.2 and late["true"] > 0.4, late
+
+
 def test_the_shipped_bandit_model_reads_its_rewards_on_bandits_it_never_saw():
     """`bandit` (its TRAINING.md): on 16 new bandits its episodes 11-20 earn about 0.9 of the best arm with its
     rewards fed back, about a random policy's 0.6 fed zeros."""

@@ -36,6 +36,17 @@ mkdir -p "$W/keytodoor-episodereturn" && cp -rn "$W/keytodoor-randomstart/data" 
 scripts/icrl_benchmark.sh $R/keytodoor-randomstart/recipe.yaml $R/keytodoor-episodereturn/config.yaml \
   KeyToDoorRandomStart-heldout-v0 "$W/keytodoor-episodereturn"
 cell keytodoor-adeps keytodoor KeyToDoor-heldout-v0
+# a search the model can copy (the shipped keytodoor), on 64 more pairs too, greedy, and its sampled trace on seed 100
+cell keytodoor-walk keytodoor-walk KeyToDoor-heldout-v0
+for rewards in true zero shuffled; do
+  vintix eval --checkpoint "$W/keytodoor-walk/run" --tasks KeyToDoor-heldout-v0 --shots 40 --seeds 64 --first-seed 200 \
+    --reward-input "$rewards" --label "keytodoor-walk, 64 more pairs" --out "$W/keytodoor-walk/results-64/$rewards"
+done
+vintix report "$W"/keytodoor-walk/results-64/{true,zero,shuffled} --out "$W/keytodoor-walk/report-64"
+vintix eval --checkpoint "$W/keytodoor-walk/run" --tasks KeyToDoor-heldout-v0 --shots 40 --seeds 16 --first-seed 100 \
+  --greedy --out "$W/keytodoor-walk/results/true-greedy"
+python scripts/grid_trace.py "$W/keytodoor-walk/run" --seed 100 --sample --episodes 40 \
+  > "$W/keytodoor-walk/trace-seed100-sampled.txt"
 # Key-to-Door prompted with its search demonstrator's first 150 steps (its rewards kept, then zeroed), 20 held-out pairs
 vintix collect --recipe $R/keytodoor-prompted/recipe.yaml --out "$W/keytodoor-prompted/data" --workers 1
 cp -r "$W/keytodoor-prompted/data" "$W/keytodoor-prompted/data-zeroed"
