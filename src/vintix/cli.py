@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import errno
 import importlib.util
 import io
@@ -854,12 +855,16 @@ def train_command(
     """Train (or resume) a model by Algorithm Distillation.
 
     Many GPUs: torchrun --nproc-per-node N -m vintix train ... (same options)."""
+    from vintix.agent import resolve_checkpoint
     from vintix.evaluate import in_context_scorer
     from vintix.train import load_config, train
 
     try:
         train_config = load_config(config, {"data": data and str(data), "out": out and str(out),
                                             "threads": threads}, settings)
+        if train_config.init_from is not None:  # a shipped model's name is the agent stage's to resolve
+            train_config = dataclasses.replace(train_config,
+                                               init_from=str(resolve_checkpoint(train_config.init_from)))
         train(train_config, scorer=in_context_scorer(train_config))
     except VintixError as error:
         raise _fail(error) from None

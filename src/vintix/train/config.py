@@ -40,9 +40,9 @@ class TrainConfig:
     model_overrides: dict[str, Any] = field(default_factory=dict)
     """ModelConfig fields to override, e.g. {mask_reward: true} for the AD-without-rewards ablation"""
     init_from: str | None = None
-    """fine-tune: start from this model's weights (a checkpoint, a training run or a shipped model's name), loaded
-    wherever a parameter has the same name and shape, so task groups it lacks start fresh; its model settings must
-    be this run's. A resumed run takes its weights from its own checkpoint instead"""
+    """fine-tune: start from this model's weights (a checkpoint or a training run; `vintix train` also takes a shipped
+    model's name), loaded wherever a parameter has the same name and shape, so task groups it lacks start fresh; its
+    model settings must be this run's. A resumed run takes its weights from its own checkpoint instead"""
     tasks: list[str] = field(default_factory=lambda: ["train"])
     """train on these task names / domains / splits of the dataset (default: the train split, so held-out
     tasks in the folder never leak into training; [] for every task). The dataset's other tasks of the

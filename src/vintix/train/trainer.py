@@ -41,6 +41,7 @@ from vintix.train.checkpoint import (
     checkpoint_dir,
     latest_checkpoint,
     load_optimizer,
+    model_directory,
     prune_checkpoints,
     read_rng,
     read_training_state,
@@ -243,14 +244,13 @@ def training_threads(requested: int, world_size: int) -> int:
 
 
 def start_from_pretrained(model: Vintix, name_or_path: str) -> list[str]:
-    """Copy into `model` the weights of the model `name_or_path` names (`resolve_checkpoint`) wherever a parameter
+    """Copy into `model` the weights of the model in `name_or_path` (a checkpoint or a run folder: `model_directory`;
+    `vintix train` resolves a shipped model's name to its folder first) wherever a parameter
     has the same name and shape, for fine-tuning; return the groups whose encoder or head keeps its fresh
     initialization, the ones that model lacks. Parameters only: buffers (the tasks' normalization statistics) stay
     this run's data's. Both must share their model settings: a shared trunk's weights mean nothing in another
     architecture."""
-    from vintix.agent.pretrained import resolve_checkpoint  # vintix.agent imports this package's checkpoints
-
-    source = load_pretrained(resolve_checkpoint(name_or_path))
+    source = load_pretrained(model_directory(name_or_path))
     differ = [f"{name} {value} here, {getattr(source.config, name)} there"
               for name, value in dataclasses.asdict(model.config).items() if getattr(source.config, name) != value]
     if differ:
