@@ -168,8 +168,8 @@ def test_fine_tuning_starts_from_a_models_weights_with_fresh_groups_for_tasks_it
     Trainer(make_config(metaworld_data, source, max_steps=2)).run()
     data = tmp_path / "data"  # the same Meta-World histories, and a MuJoCo task of a group the source lacks
     shutil.copytree(metaworld_data, data)
-    collect([CollectionPlan("Reacher-v5", histories=1, steps=100, envs_per_batch=1)], data)
-    tuned = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source)))
+    collect([CollectionPlan("Reacher-v5", histories=1, steps=150, envs_per_batch=1)], data)
+    tuned = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source), max_steps=1))
     assert "fresh: group mujoco-reacher" in capsys.readouterr().out
     start, trained = load_pretrained(model_directory(source)), dict(tuned.model.named_parameters())
     for name, value in start.named_parameters():
@@ -181,6 +181,10 @@ def test_fine_tuning_starts_from_a_models_weights_with_fresh_groups_for_tasks_it
                                           r"here, 64 there\)"):
         Trainer(make_config(data, tmp_path / "other", model_overrides={**TEST_MODEL, "mlp_dim": 32},
                             init_from=str(source)))
+    tuned.run()  # a resumed run's weights are its checkpoint's, however init_from is spelled now
+    resumed = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source / "checkpoints"),
+                                  max_steps=2))
+    assert resumed.step == 1
 
 
 def test_a_checkpoint_from_before_a_model_field_existed_resumes_with_that_fields_default(metaworld_data, tmp_path):

@@ -213,12 +213,14 @@ _SET_HINT = ("(--set values are read as YAML: --set max_steps=500, --set 'tasks=
 FREE_ON_RESUME = frozenset({
     "data", "out", "max_steps", "device", "threads", "num_workers", "checkpoint_every", "keep_checkpoints", "log_every",
     "tensorboard", "select_every", "select_shots", "select_seeds", "select_first_seed", "select_reward_gap",
-    "stats_cache_dir", "allow_resume_changes", "model", "model_overrides",
+    "stats_cache_dir", "allow_resume_changes", "model", "model_overrides", "init_from",
 })
 """TrainConfig fields a resumed run may change: where things are, how long it runs, how often it logs,
-saves and scores; and how the model is spelled (preset and overrides), as long as the model they make is the
-checkpoint's (`check_resumable` compares the two). Every other field shapes the weights or what "best"
-means, so a resumed run that changes one is a different run (`TrainConfig.allow_resume_changes`)."""
+saves and scores; how the model is spelled (preset and overrides), as long as the model they make is the
+checkpoint's (`check_resumable` compares the two); and where its first weights came from (`init_from`: a resumed
+run's weights are its checkpoint's, and `vintix train` spells a shipped model's name as its folder). Every other
+field shapes the weights or what "best" means, so a resumed run that changes one is a different run
+(`TrainConfig.allow_resume_changes`)."""
 
 
 def _parse_override(item: str) -> tuple[str, Any]:
