@@ -6,7 +6,7 @@
 # (10 seeds, 10 episodes).
 #   docs/results/meta-rl/held-out-cheetah-dir/run.sh [WORK_DIR]   (default work/held-out-cheetah-dir; resumes)
 # Collection about 2 min (recipe meta-mujoco, HalfCheetah-Dir's histories are collected and not trained on),
-# training about 35 min on 2 threads, evaluations about 10 min.
+# training about 40 min on 2 threads, evaluations about 4 min.
 set -euo pipefail
 cd "$(dirname "$0")/../../../.."
 W=${1:-work/held-out-cheetah-dir}
