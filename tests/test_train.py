@@ -295,6 +295,7 @@ def test_in_context_selection_keeps_the_best_model_beside_the_latest_and_across_
     assert logged(out, "in_context_score") == [0.2, 0.7, 0.4, 0.5, 0.9]
     with (out / "log.csv").open() as f:
         assert [row["reward_use_gap"] for row in csv.DictReader(f)] == ["", "", "", "0.25", "0.45"]
+    assert b"\r" not in (out / "log.csv").read_bytes()  # kept and new rows end their lines alike
 
 
 @pytest.mark.parametrize(("setting", "message"), [

@@ -336,7 +336,8 @@ class MetricsLog:
         lines = [",".join(self.columns)] + [",".join(str(row.get(c) or "") for c in self.columns) for row in kept]
         atomic_write_text(self.path, "\n".join(lines) + "\n")
         self._file = self.path.open("a", newline="")
-        self._csv = csv.DictWriter(self._file, self.columns)
+        # The kept rows' line ending, not csv's \r\n: one file, one ending, however often it resumed.
+        self._csv = csv.DictWriter(self._file, self.columns, lineterminator="\n")
         self.tensorboard = None
         if tensorboard:
             from torch.utils.tensorboard import SummaryWriter  # imports the tensorboard package
