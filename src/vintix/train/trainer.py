@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
+import io
 import math
 import os
 import shutil
@@ -19,7 +20,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import IO, TypeVar
 
 import torch
 import torch.distributed as dist
@@ -333,17 +334,25 @@ class MetricsLog:
                         "reward_use_gap", *[f"loss_{g}" for g in groups]]
         self.path = out / "log.csv"
         kept = self._rows_up_to(resume_step) if resume_step and self.path.is_file() else []
-        lines = [",".join(self.columns)] + [",".join(str(row.get(c) or "") for c in self.columns) for row in kept]
-        atomic_write_text(self.path, "\n".join(lines) + "\n")
+        # One writer for the rows a resume keeps and the new ones, so the file has one quoting and one line ending;
+        # a kept row's columns this run no longer logs are dropped, the new ones left empty.
+        rewritten = io.StringIO()
+        writer = self._rows_writer(rewritten)
+        writer.writeheader()
+        writer.writerows(kept)
+        atomic_write_text(self.path, rewritten.getvalue())
         self._file = self.path.open("a", newline="")
-        # The kept rows' line ending, not csv's \r\n: one file, one ending, however often it resumed.
-        self._csv = csv.DictWriter(self._file, self.columns, lineterminator="\n")
+        self._csv = self._rows_writer(self._file)
         self.tensorboard = None
         if tensorboard:
             from torch.utils.tensorboard import SummaryWriter  # imports the tensorboard package
 
             # purge_step hides events a killed run wrote after its last checkpoint.
             self.tensorboard = SummaryWriter(str(out / "tensorboard"), purge_step=resume_step or None)
+
+    def _rows_writer(self, file: IO[str]) -> csv.DictWriter:
+        """The log's CSV writer on `file`."""
+        return csv.DictWriter(file, self.columns, lineterminator="\n", extrasaction="ignore")
 
     def _rows_up_to(self, step: int) -> list[dict[str, str]]:
         """The log's rows up to `step`, those that read; a log with rows that do not (damaged on disk, edited) is
