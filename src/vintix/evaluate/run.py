@@ -19,8 +19,9 @@ import csv
 import io
 import json
 import math
+import sys
 import time
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
@@ -247,7 +248,9 @@ def run_episodes(
     prompt_steps = agent.model.config.context_len // 2 if config.prompt_steps is None else config.prompt_steps
     batches = [runs[start : start + config.batch_envs] for start in range(0, len(runs), config.batch_envs)]
     if ray is None:
-        return [row for batch in batches for row in run_batch(agent, config, batch, prompt_steps, progress)]
+        done = log_lines_off_terminal((run_batch(agent, config, batch, prompt_steps, progress) for batch in batches),
+                                      len(batches), "batches of runs", progress)
+        return [row for rows in done for row in rows]
     if not checkpoint or agent.device.type != "cpu":
         raise VintixError("evaluating on Ray needs the model's checkpoint folder (each worker loads the model itself) "
                           f"and the cpu device (a worker has one CPU and no GPU); got {checkpoint!r} on {agent.device}")
@@ -257,8 +260,23 @@ def run_episodes(
     source = str(Path(checkpoint).absolute()) if Path(checkpoint).exists() else checkpoint
     config = replace(config, prompt_from=config.prompt_from and config.prompt_from.absolute())
     calls = [(source, torch.get_num_threads(), config, batch, prompt_steps) for batch in batches]
-    by_batch = dict(cluster.map_tasks(_run_batch_in_worker, calls, "evaluation batches", progress))
+    by_batch = dict(log_lines_off_terminal(cluster.map_tasks(_run_batch_in_worker, calls, "evaluation batches",
+                                                             progress), len(batches), "batches of runs", progress))
     return [row for index in range(len(batches)) for row in by_batch[index]]
+
+
+_Item = TypeVar("_Item")
+
+
+def log_lines_off_terminal(items: Iterable[_Item], total: int, what: str, progress: bool) -> Iterator[_Item]:
+    """`items`, passed through; with `progress` off a terminal (a log file, where tqdm's bars are off), a line as
+    each arrives: how many of `total` `what` are done and the minutes so far, so a long evaluation's log shows it
+    is alive."""
+    lines, started = progress and not sys.stderr.isatty(), time.perf_counter()
+    for done, item in enumerate(items, 1):
+        if lines:
+            print(f"{done}/{total} {what} done, {(time.perf_counter() - started) / 60:.1f} min", flush=True)
+        yield item
 
 
 def _run_batch_in_worker(checkpoint: str, threads: int, config: EvalConfig, batch: list[tuple[TaskSpec, int]],
