@@ -38,6 +38,7 @@ def test_the_hub_mixin_saves_a_model_card_and_loads_a_local_folder_strictly(tmp_
     card = (tmp_path / "ckpt" / "README.md").read_text()
     assert card.startswith("---\n") and "library_name: vintix" in card and "reinforcement-learning" in card
     assert "step 1,200, 4,000,000 tokens on a1" in card and "success 0.275" in card and "## How it was made" in card
+    assert "(reward-use gap +0.200)" in card
     loaded = Vintix.from_pretrained(str(tmp_path / "ckpt"))  # the library's method, no download for a folder
     batch = make_batch("A", "a1", model)
     assert torch.equal(model(**batch), loaded(**batch)) and not loaded.training

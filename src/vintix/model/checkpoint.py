@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -113,9 +114,12 @@ def model_card_fields(model: Vintix, extra: dict[str, Any], details: str, name: 
                      f"{', '.join(extra.get('trained_tasks', [])) or 'its dataset'} (dataset fingerprint "
                      f"{extra.get('dataset_fingerprint', 'unknown')}).")
     if extra.get("in_context_score") is not None:
+        # No gap where the selection measured none (a run of visible-goal tasks only): said, not printed as None.
+        gap = extra.get("reward_use_gap")
         lines.append(f"Kept as the run's best in context: {extra.get('select_metric', 'score')} "
                      f"{extra['in_context_score']:.3f} on unseen seeds of {', '.join(extra.get('select_tasks', []))} "
-                     f"(reward-use gap {extra.get('reward_use_gap')}).")
+                     + (f"(reward-use gap {gap:+.3f})." if gap is not None and math.isfinite(gap)
+                        else "(no reward-use gap measured)."))
     if "official" in extra:
         lines.append(f"Imported from the authors' release (model.pth sha256 {extra['official'].get('sha256')}).")
     if "train_config" in extra:
