@@ -21,8 +21,9 @@ install: $(INSTALLED)
 # from the true returns. Where the goal is hidden (Meta-World reach and pick-place, MuJoCo's Reacher-hidden) it
 # probes in shot 1, then succeeds where its rewards pointed, and fails with zeros; where the goal is visible
 # (Meta-World button-press, MuJoCo Pusher, Industrial Benchmark) it plays like its demonstrators either way. Beside
-# it, the Dark Room model on AD^ε's 16 held-out goals and the Key-to-Door model on 16 held-out (key, door) pairs (the
-# discrete benchmarks; their TRAINING.md).
+# it, vintix-cpu-meta (the flagship fine-tuned with the meta-RL tasks) on HalfCheetah-Vel, HalfCheetah-Dir and
+# Ant-Dir, whose target velocity or direction only the rewards tell; the Dark Room model on AD^ε's 16 held-out goals
+# and the Key-to-Door model on 16 held-out (key, door) pairs (the discrete benchmarks; their TRAINING.md).
 # Per-shot tables of score and success rate, then a report with the reward-use gap per task, under demo/; the last
 # lines give each run's gap (true − zero) per domain with its CI and shots. No training. Each eval runs on one
 # thread, so the zero-reward eval runs beside the true-reward one on the second core (its table is printed after),
@@ -31,6 +32,7 @@ DEMO := demo
 # name:model:tasks:seeds
 DEMO_RUNS := hidden-goals:vintix-cpu:reach-v3,pick-place-v3,Reacher-hidden-v5:10 \
 	visible-goals:vintix-cpu:button-press-v3,Pusher-v5,industrial-benchmark-30-v1:3 \
+	meta-rl:vintix-cpu-meta:HalfCheetah-Vel-v5,HalfCheetah-Dir-v5,Ant-Dir-v5:5 \
 	darkroom:darkroom:DarkRoom-heldout-v0:16 \
 	keytodoor:keytodoor:KeyToDoor-heldout-v0:16
 DEMO_EVAL := --shots 10 --first-seed 100 --reference ours

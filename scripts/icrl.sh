@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Rebuild an in-context RL model and its reward-ablation results from nothing, on a CPU.
-#   scripts/icrl.sh NAME [WORK_DIR]      NAME: icrl-reach, icrl-suite or vintix-cpu (default WORK_DIR: NAME/;
-#                                        collection and training resume where they stopped)
+#   scripts/icrl.sh NAME [WORK_DIR]      NAME: a shipped config and recipe, e.g. icrl-suite, vintix-cpu,
+#                                        vintix-cpu-meta (default WORK_DIR: NAME/; collection and training resume
+#                                        where they stopped)
 # Steps: the histories of recipe NAME (src/vintix/collect/recipes/NAME.yaml: each a hidden goal played
 # by a demonstrator that never sees it: it probes the goal box in its first episode, then aims at goals
 # drawn from its posterior given the rewards so far); a model trained with config NAME

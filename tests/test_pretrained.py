@@ -14,7 +14,7 @@ from vintix.tasks import get_task, make_env
 
 
 # point-goal: no checkpoint selection
-@pytest.mark.parametrize("name", ["cpu-suite", "icrl-reach", "icrl-suite", "vintix-cpu"])
+@pytest.mark.parametrize("name", ["cpu-suite", "icrl-reach", "icrl-suite", "vintix-cpu", "vintix-cpu-meta"])
 def test_a_shipped_model_is_small_trained_on_its_recipe_and_records_how_it_was_made(name):
     assert name in shipped_models()
     folder = resolve_checkpoint(name)
