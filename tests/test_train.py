@@ -181,6 +181,9 @@ def test_fine_tuning_starts_from_a_models_weights_with_fresh_groups_for_tasks_it
                                           r"here, 64 there\)"):
         Trainer(make_config(data, tmp_path / "other", model_overrides={**TEST_MODEL, "mlp_dim": 32},
                             init_from=str(source)))
+    kept = Trainer(make_config(data, tmp_path / "kept", tasks=[], init_from=str(source), max_steps=1,
+                               model_overrides={**TEST_MODEL, "keep_first_steps": 8}))  # inference-only: free
+    assert kept.model.config.keep_first_steps == 8
     tuned.run()  # a resumed run's weights are its checkpoint's, however init_from is spelled now
     resumed = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source / "checkpoints"),
                                   max_steps=2))

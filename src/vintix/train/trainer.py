@@ -244,16 +244,21 @@ def training_threads(requested: int, world_size: int) -> int:
     return max(1, min(cores, cores - round(busy)) // world_size)
 
 
+INFERENCE_ONLY_SETTINGS = ("keep_first_steps",)
+"""Model settings no weight depends on (training windows never slide): a fine-tune may change them"""
+
+
 def start_from_pretrained(model: Vintix, name_or_path: str) -> list[str]:
     """Copy into `model` the weights of the model in `name_or_path` (a checkpoint or a run folder: `model_directory`;
     `vintix train` resolves a shipped model's name to its folder first) wherever a parameter
     has the same name and shape, for fine-tuning; return the groups whose encoder or head keeps its fresh
     initialization, the ones that model lacks. Parameters only: buffers (the tasks' normalization statistics) stay
-    this run's data's. Both must share their model settings: a shared trunk's weights mean nothing in another
-    architecture."""
+    this run's data's. Both must share their model settings, but the inference-only ones: a shared trunk's weights
+    mean nothing in another architecture."""
     source = load_pretrained(model_directory(name_or_path))
     differ = [f"{name} {value} here, {getattr(source.config, name)} there"
-              for name, value in dataclasses.asdict(model.config).items() if getattr(source.config, name) != value]
+              for name, value in dataclasses.asdict(model.config).items()
+              if name not in INFERENCE_ONLY_SETTINGS and getattr(source.config, name) != value]
     if differ:
         raise ConfigError(f"init_from {name_or_path}: its model settings are not this run's ({'; '.join(differ)}); "
                           "train with its preset and model_overrides, or from scratch")
