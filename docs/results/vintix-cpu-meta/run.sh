@@ -7,7 +7,9 @@
 # cosine schedule; about 2 h 45 min on 2 threads in all), then evaluates step 12,000 cold on env seeds 100-119, 40
 # episodes, on the eight hidden-information tasks with true / zero / shuffled / another seed's rewards fed back, and
 # on the visible tasks (10 seeds, 10 episodes, true / zero), writes the reports (scripts/icrl.sh; about 35 min), and
-# runs Meta-World's ML1 protocol on the shipped model (docs/results/ml1/run.sh; about 20 min).
+# runs Meta-World's ML1 protocol on the shipped model (docs/results/ml1/run.sh; about 20 min). The config keeps a
+# run's first 300 steps in the agent's window (keep_first_steps, no weight depends on it): the shipped model's run
+# kept 100 and was set to 300 after keep-first/run.sh's sweep, so its in-context selection scored with 100.
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 W=${1:-work/vintix-cpu-meta}
