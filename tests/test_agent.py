@@ -251,6 +251,29 @@ def test_a_gaussian_policy_samples_reproducibly_from_its_seed():
     assert not np.allclose(first, run(1))
 
 
+@pytest.mark.parametrize("sample_noise", ["step", "episode"])
+def test_a_flow_heads_noise_is_drawn_each_step_or_held_for_an_episode(sample_noise):
+    """'episode': one draw at each episode start, held to its end (one posterior sample an episode); 'step': a
+    fresh draw every step. The action is the flow of that noise, reproducible from the seed."""
+    model = tiny_model(policy="flow", sample_noise=sample_noise)
+    inputs = random_inputs(model, "metaworld", 1, steps=14)  # two episodes of 7 steps
+    agent = Agent(model)
+    agent.reset(["reach-v3"], [UNBOUNDED[4]])
+    noises = []
+    for t in range(14):
+        agent.act([inputs["obs"][0, t]], [inputs["prev_reward"][0, t]], [inputs["step_num"][0, t] == 0])
+        noises.append(agent._held_noise["metaworld"][0].clone())
+    same_as_last = [torch.equal(a, b) for a, b in zip(noises, noises[1:], strict=False)]
+    if sample_noise == "episode":
+        assert same_as_last == [t % 7 != 6 for t in range(13)]  # a new draw at step 7 only
+    else:
+        assert not any(same_as_last)
+    agent.reset(["reach-v3"], [UNBOUNDED[4]], discard_context=True)
+    again = play(agent, [inputs], 14)[0]
+    agent.reset(["reach-v3"], [UNBOUNDED[4]], discard_context=True)
+    np.testing.assert_array_equal(again, play(agent, [inputs], 14)[0])
+
+
 def test_a_context_or_batch_beyond_the_machines_memory_is_refused_before_allocating(tmp_path):
     model = tiny_model()
     save_pretrained(model, tmp_path)

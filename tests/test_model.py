@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -19,7 +20,7 @@ from vintix.model import (
     count_parameters,
     preset,
 )
-from vintix.model.model import fourier_features
+from vintix.model.model import LOG_STD_RANGE, action_head, fourier_features
 
 GROUPS = [GroupSpec("A", obs_dim=5, act_dim=2), GroupSpec("B", obs_dim=7, act_dim=3)]
 TASKS = [
@@ -305,10 +306,64 @@ def test_a_gaussian_policy_predicts_a_mean_and_a_bounded_log_std():
     model = make_model(policy="gaussian")
     batch = make_batch("B", "b0", model)
     h = model.backbone(model.embed(**batch))
-    mean, log_std = model.action_distribution("B", h)
+    mean, log_std = model.action_head("B").distribution(h)
     assert mean.shape == log_std.shape == (2, 12, 3)
     assert torch.equal(model.head("B", h), mean) and torch.equal(model(**batch), mean)
-    assert make_model().action_distribution("B", h)[1] is None  # deterministic: the paper's MSE head
+    assert log_std.min() >= LOG_STD_RANGE[0] and log_std.max() <= LOG_STD_RANGE[1]
+
+
+@pytest.mark.parametrize("policy", ["deterministic", "gaussian", "flow"])
+def test_every_head_trains_and_acts_through_one_interface(policy):
+    """The model, the trainer and the agent call the head's loss and act, whatever its kind."""
+    model = make_model(policy=policy)
+    batch = make_batch("B", "b0", model)
+    h = model.backbone(model.embed(**batch))
+    head = model.action_head("B")
+    loss = head.loss(h, torch.rand(2, 12, 3))
+    assert loss.shape == (2, 12) and torch.isfinite(loss).all()
+    loss.mean().backward()  # every parameter of the head is trained
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in head.parameters())
+    noise = torch.randn(2, head.noise_dim) if head.noise_dim else None
+    actions, finite = head.act(h[:, -1].detach(), noise, torch.Generator().manual_seed(0))
+    assert actions.shape == (2, 3) and finite.all()
+    greedy = head.act(h[:, -1].detach(), torch.zeros(2, head.noise_dim) if head.noise_dim else None, None)[0]
+    assert torch.allclose(greedy, model.head("B", h[:, -1].detach()), atol=1e-6)
+
+
+def test_a_discrete_group_has_a_categorical_head_whatever_the_policy():
+    spec = GroupSpec("D", obs_dim=2, act_dim=5, discrete=True)
+    head = action_head(spec, tiny_config(policy="flow"))
+    indices = head.act(torch.zeros(3, tiny_config().d_model), None, torch.Generator().manual_seed(0))[0]
+    assert indices.shape == (3,) and indices.dtype == torch.long
+    assert head.encode_previous(torch.tensor([[4, 0]])).tolist() == [[[0, 0, 0, 0, 1], [1, 0, 0, 0, 0]]]
+
+
+def test_a_flow_head_draws_one_of_two_modes_where_the_mse_head_averages_them():
+    """A posterior of two goals (left or right, as on Ant-Dir): MSE learns their mean, standing still; the flow
+    head's draws land on one mode or the other, each about half the time."""
+    torch.manual_seed(0)
+    spec, config = GroupSpec("B", obs_dim=1, act_dim=1), tiny_config(head_layers=2)
+    heads = {policy: action_head(spec, replace(config, policy=policy)) for policy in ("deterministic", "flow")}
+    h = torch.randn(1, 1, config.d_model).expand(64, 1, -1)  # one context, whose next action is -1 or +1
+    for head in heads.values():
+        optimizer = torch.optim.Adam(head.parameters(), lr=3e-3)
+        for _ in range(400):
+            target = torch.randint(0, 2, (64, 1, 1)).float() * 2 - 1
+            optimizer.zero_grad()
+            head.loss(h, target).mean().backward()
+            optimizer.step()
+    with torch.no_grad():
+        assert abs(heads["deterministic"].predict(h[:1, 0]).item()) < 0.2
+        draws = heads["flow"].act(h[:, 0], torch.randn(64, 1, generator=torch.Generator().manual_seed(1)), None)[0]
+    assert (draws.abs() > 0.6).float().mean() > 0.8  # on a mode, not between them
+    assert 0.25 < (draws > 0).float().mean() < 0.75  # both modes
+
+
+def test_flow_noise_settings_are_checked():
+    with pytest.raises(ValueError, match="sample_noise"):
+        tiny_config(sample_noise="run")
+    with pytest.raises(ValueError, match="flow_steps"):
+        tiny_config(flow_steps=0)
 
 
 @pytest.mark.parametrize("field, value", [("policy", "stochastic"), ("reward_encoder", "fourier")])

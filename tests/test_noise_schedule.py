@@ -118,3 +118,29 @@ def test_mixing_is_the_expert_at_zero_noise_and_uniform_at_full_noise():
     np.testing.assert_array_equal(mix_action(expert, 0.0, noise), np.broadcast_to(expert, noise.shape))
     samples = mix_action(expert, 1.0, noise)
     assert abs(samples.mean()) < 0.05 and samples.min() < -0.95 and samples.max() > 0.95
+
+
+def test_a_level_holds_epsilon_constant_and_a_dpt_history_records_the_experts_action_behind_random_ones(tmp_path):
+    """DPT's context: every action uniformly random (level 1), the target the goal-aware expert's action."""
+    schedule = NoiseSchedule(level=1.0, noise_free_fraction=0.0)
+    assert (schedule.epsilon(np.arange(100), 100) == 1.0).all()
+    assert NoiseSchedule.from_recorded(schedule.recorded()) == schedule
+    with pytest.raises(ValueError, match="level"):
+        NoiseSchedule(level=1.0, curvature=2.0)
+    from vintix.data import LearningHistory
+    from vintix.tasks.icrl import step_towards
+
+    def history_goal(path):
+        import vintix
+
+        with LearningHistory(path) as history:
+            env = vintix.make_env("DarkRoom-v0", seed=int(history.attrs["env_seed"]))
+        return env.unwrapped.true_goal
+
+    [summary] = collect(CollectionPlan("DarkRoom-v0", histories=1, steps=400, schedule=schedule), tmp_path)
+    with LearningHistory(summary.path) as history:
+        rows = history.read(0, 400, demonstrator_action=True)
+    taken, target = rows["action"], rows["demonstrator_action"]
+    assert np.bincount(taken, minlength=5).min() > 50  # uniformly random moves, not the expert's
+    goal = history_goal(summary.path)
+    assert (target == step_towards(rows["observation"], goal)).all()

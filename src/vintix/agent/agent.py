@@ -251,11 +251,11 @@ class Agent:
     """
 
     def __init__(self, model: Vintix, seed: int = 0, threads: int | None = None) -> None:
-        """`seed`: the draws of a gaussian-policy model's actions (`ModelConfig.policy`), restarted at every
-        `reset`, so a run is reproducible; a deterministic model draws nothing. `threads`: torch's CPU threads
-        for this process (`torch.set_num_threads`), None to leave them as they are. One thread suits a small
-        model stepping a few envs: its step is too short to share, and with torch's default (one thread per
-        core) a core another job holds stalls every step (a shipped model's step on a 2-core CPU with a
+        """`seed`: the draws of a sampling head's actions (categorical, gaussian, flow: `vintix.model.ActionHead`),
+        restarted at every `reset`, so a run is reproducible; a deterministic model draws nothing. `threads`:
+        torch's CPU threads for this process (`torch.set_num_threads`), None to leave them as they are. One thread
+        suits a small model stepping a few envs: its step is too short to share, and with torch's default (one
+        thread per core) a core another job holds stalls every step (a shipped model's step on a 2-core CPU with a
         training on it: 20.7 ms mean with 2 threads, 1.3 ms with 1)."""
         if threads is not None:
             try:
@@ -269,6 +269,8 @@ class Agent:
         self.cache: KVCache | None = None
         self._groups: dict[str, _GroupBatch] = {}
         self._prev_action: dict[str, torch.Tensor] = {}
+        self._held_noise: dict[str, torch.Tensor] = {}
+        """per group, each env's noise of its last draw (`_noise`)"""
         self._busy = threading.Lock()
         self._awaiting_start = np.zeros(0, dtype=bool)
         self._last_rewards = np.zeros(0)
@@ -327,6 +329,8 @@ class Agent:
         self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces, strict=True)]
         self._regroup()
         self._prev_action = {g: self._no_actions(g, len(b.envs)) for g, b in self._groups.items()}
+        self._held_noise = {g: torch.zeros(len(b.envs), self.model.action_head(g).noise_dim, device=self.device)
+                            for g, b in self._groups.items()}
         self.cache = KVCache.for_model(self.model, len(self.tasks))
         self._awaiting_start = np.zeros(len(self.tasks), dtype=bool)
         self._last_rewards = np.zeros(len(self.tasks))  # next-step autoreset: the reward that came with the flag
@@ -361,18 +365,24 @@ class Agent:
             raise AgentInputError(f"keep needs indices in 0..{len(self.tasks) - 1}, got {envs}")
         if len(set(envs)) != len(envs):
             raise AgentInputError(f"keep got an index twice ({envs}); each env's context can be kept once")
-        # Each env's previous action lives in its group's rows; gather them per old env index first.
-        previous: dict[int, torch.Tensor] = {}
-        for group, batch in self._groups.items():
-            previous.update(zip(batch.envs.tolist(), self._prev_action[group], strict=True))
+        old_groups = self._groups
         self.tasks = [self.tasks[i] for i in envs]
         self._awaiting_start = self._awaiting_start[envs]
         self._last_rewards = self._last_rewards[envs]
         self._episode_returns = self._episode_returns[envs]
         self._regroup()
-        self._prev_action = {g: torch.stack([previous[envs[j]] for j in b.envs.tolist()])
-                             for g, b in self._groups.items()}
+        self._prev_action = self._kept_rows(self._prev_action, old_groups, envs)
+        self._held_noise = self._kept_rows(self._held_noise, old_groups, envs)
         self.cache.keep(torch.tensor(envs, device=self.device))
+
+    def _kept_rows(self, rows: dict[str, torch.Tensor], old_groups: dict[str, _GroupBatch],
+                   envs: list[int]) -> dict[str, torch.Tensor]:
+        """Per-group rows of each env (its previous action, its held noise) after `keep(envs)`, gathered by the
+        envs' old batch indices."""
+        by_env: dict[int, torch.Tensor] = {}
+        for group, batch in old_groups.items():
+            by_env.update(zip(batch.envs.tolist(), rows[group], strict=True))
+        return {g: torch.stack([by_env[envs[j]] for j in b.envs.tolist()]) for g, b in self._groups.items()}
 
     def _check(self, what: str, env: int, values: np.ndarray, shape: tuple[int, ...]) -> None:
         task = self.tasks[env]
@@ -430,8 +440,8 @@ class Agent:
     ) -> list[np.ndarray]:
         """One step of every env: actions (clipped to each env's bounds), one array per env; a discrete env's is
         an integer index (a 0-d array), drawn from the model's logits, or their argmax when `deterministic` (a
-        gaussian-policy model's: its mean). AD and DPT sample: a greedy policy on a flat distribution never
-        explores.
+        gaussian head's: its mean; a flow head's: where zero noise flows). AD and DPT sample: a greedy policy on a
+        flat distribution never explores.
 
         ``obs[i]`` is env ``i``'s raw observation and ``prev_rewards[i]`` the raw reward it returned for the
         agent's previous action; where ``episode_starts[i]`` (the first observation of an episode) that is the
@@ -476,45 +486,38 @@ class Agent:
         self._episode_returns = returns[:, 0] if skip is None else np.where(skip, self._episode_returns, returns[:, 0])
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, members in self._groups.items():
-            if self.model.groups[group].discrete:
-                self._choose_discrete(group, members, hidden, sitting_out, sample, actions)
-                continue
-            mean, log_std = self.model.action_distribution(group, hidden[members.envs])
-            if log_std is not None and sample:  # a gaussian policy acts on a draw
-                mean = mean + log_std.exp() * torch.randn(mean.shape, generator=self._generator, device=mean.device)
-            action = torch.clamp(mean, members.action_low, members.action_high)
-            if sitting_out is not None:
-                action = torch.where(sitting_out[members.envs].unsqueeze(1), self._prev_action[group], action)
-            finite = torch.isfinite(action).all(dim=1)  # clamp passes NaN through
+            head = self.model.action_head(group)
+            noise = self._noise(group, starts[members.envs.cpu().numpy()], sample) if head.noise_dim else None
+            action, finite = head.act(hidden[members.envs], noise, self._generator if sample else None)
             if not finite.all():
                 env = int(members.envs[~finite][0])
                 raise AgentOutputError(
                     f"env {env} ({self.tasks[env].task}): the model's action is NaN/inf for finite inputs; its "
                     "weights are damaged or it overflowed. Load another checkpoint (an earlier one of the run)"
                 )
+            discrete = self.model.groups[group].discrete
+            if not discrete:
+                action = torch.clamp(action, members.action_low, members.action_high)
+            if sitting_out is not None:
+                out = sitting_out[members.envs]
+                action = torch.where(out if discrete else out.unsqueeze(1), self._prev_action[group], action)
             self._prev_action[group] = action
             for i, a in zip(members.envs.tolist(), action.cpu().numpy(), strict=True):
-                actions[i] = a
+                actions[i] = np.asarray(a, dtype=np.int64) if discrete else a
         return actions
 
-    def _choose_discrete(self, group: str, members: _GroupBatch, hidden: torch.Tensor,
-                         sitting_out: torch.Tensor | None, sample: bool, actions: list[np.ndarray]) -> None:
-        """A discrete group's actions: a draw from its logits (or their argmax), each a 0-d integer array."""
-        logits = self.model.action_distribution(group, hidden[members.envs])[0].float()
-        if not torch.isfinite(logits).all():
-            env = int(members.envs[~torch.isfinite(logits).all(dim=1)][0])
-            raise AgentOutputError(
-                f"env {env} ({self.tasks[env].task}): the model's action logits are NaN/inf for finite inputs; its "
-                "weights are damaged or it overflowed. Load another checkpoint (an earlier one of the run)")
-        if sample:
-            action = torch.multinomial(logits.softmax(dim=-1), 1, generator=self._generator).squeeze(1)
-        else:
-            action = logits.argmax(dim=-1)
-        if sitting_out is not None:
-            action = torch.where(sitting_out[members.envs], self._prev_action[group], action)
-        self._prev_action[group] = action
-        for i, a in zip(members.envs.tolist(), action.cpu().numpy(), strict=True):
-            actions[i] = np.asarray(a, dtype=np.int64)
+    def _noise(self, group: str, starts: np.ndarray, sample: bool) -> torch.Tensor:
+        """The standard-normal noise a sampling head acts on for `group`'s envs this step (zeros when not `sample`:
+        its greedy action): a fresh draw every step, or under `ModelConfig.sample_noise` 'episode' the draw of each
+        env's episode start, held to its end (one posterior sample an episode)."""
+        held = self._held_noise[group]
+        if not sample:
+            return torch.zeros_like(held)
+        fresh = torch.randn(held.shape, generator=self._generator, device=held.device)
+        if self.model.config.sample_noise == "episode":
+            fresh = torch.where(torch.as_tensor(starts, device=held.device).unsqueeze(1), fresh, held)
+        self._held_noise[group] = fresh
+        return fresh
 
     @_one_call_at_a_time
     @torch.inference_mode()
@@ -543,7 +546,7 @@ class Agent:
         step ignores the action and returns the new episode's first; pass ``episode_start`` as the previous
         step's ``terminated | truncated`` in both modes, and the agent sits that step out (no token for the
         stale observation; it returns the env's previous action) and takes the next observation as a start.
-        `deterministic`: a gaussian-policy model acts on its mean rather than a draw (a deterministic model
+        `deterministic`: a sampling head acts greedily rather than on a draw (`act`; a deterministic model
         always does). Returns ``(action, None)``: no recurrent state, the context lives in the agent.
         """
         if self.cache is None:

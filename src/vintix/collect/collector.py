@@ -393,8 +393,9 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
     recorded = plan.recorded_settings(index)
     if "curvature" in found:  # a file of ours, its schedule read as the schedule reads it (no knots: the power law)
         schedule = NoiseSchedule.from_recorded(found)
-        found["knots"], found["pilot_steps"] = list(schedule.knots), schedule.pilot_steps
+        found |= {"knots": list(schedule.knots), "pilot_steps": schedule.pilot_steps, "level": schedule.level}
         recorded.setdefault("pilot_steps", 0)
+        recorded.setdefault("level", None)
         for key, default in DEMONSTRATOR_SETTING_DEFAULTS.items():  # recorded only when not the default
             found.setdefault(key, default)
             recorded.setdefault(key, default)

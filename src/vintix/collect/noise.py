@@ -39,6 +39,10 @@ class NoiseSchedule:
     noise_free_start_fraction: float = 0.0
     """s: the fraction of the history, at its start, played by the demonstrator alone, for a
     demonstrator whose first episode gathers what the rest reads from its rewards (a probe)."""
+    level: float | None = None
+    """ε held at this level over the whole noised part instead of annealing: DPT's contexts (1.0: uniformly random
+    actions, whose rewards alone say where the goal is; the recorded target stays the goal-aware expert's action),
+    or a constant ε-noise around the expert (its actions then hint at the goal); None: annealed."""
 
     def __post_init__(self) -> None:
         check_field_types(self, ValueError)  # recipes are YAML: "fast" must not reach a comparison
@@ -52,6 +56,10 @@ class NoiseSchedule:
                              f"noised (f = noise_free_fraction = {tail}), got {start}")
         if self.pilot_steps < 0:
             raise ValueError(f"noise schedule pilot_steps must be >= 0, got {self.pilot_steps}")
+        annealed = self.knots or self.pilot_steps or self.curvature != 1
+        if self.level is not None and (not 0 < self.level <= 1 or annealed):
+            raise ValueError(f"noise schedule level must lie in (0, 1] and replaces the annealing: give it without "
+                             f"knots, pilot_steps or a curvature; got level={self.level}")
         if self.pilot_steps and self.curvature != 1:
             raise ValueError("give noise schedule pilot_steps or a curvature, not both (the pilot fits knots, "
                              "which replace the power law)")
@@ -71,7 +79,9 @@ class NoiseSchedule:
         end = (1 - self.noise_free_fraction) * total_steps
         progress = (np.asarray(step, dtype=np.float64) - start) / (end - start)
         clipped = np.clip(progress, 0, 1)
-        if self.knots:
+        if self.level is not None:
+            noised = np.full(clipped.shape, self.level)
+        elif self.knots:
             noised = np.interp(clipped, np.linspace(0, 1, len(self.knots)), self.knots)
         else:
             p = self.curvature
@@ -79,12 +89,13 @@ class NoiseSchedule:
         return np.where((progress >= 0) & (progress <= 1), noised, 0.0)
 
     def recorded(self) -> dict[str, Any]:
-        """The schedule as a history file records it (root attributes; knots, pilot and noise-free start only when it
-        has them)."""
+        """The schedule as a history file records it (root attributes; knots, pilot, noise-free start and level only
+        when it has them)."""
         settings: dict[str, Any] = {"curvature": self.curvature, "noise_free_fraction": self.noise_free_fraction}
         settings |= {"knots": list(self.knots)} if self.knots else {}
         start = self.noise_free_start_fraction
         settings |= {"noise_free_start_fraction": start} if start else {}
+        settings |= {"level": self.level} if self.level is not None else {}
         return settings | ({"pilot_steps": self.pilot_steps} if self.pilot_steps else {})
 
     @classmethod
@@ -92,7 +103,8 @@ class NoiseSchedule:
         """The schedule a history file records (see `recorded`)."""
         return cls(float(attrs["curvature"]), float(attrs["noise_free_fraction"]),
                    tuple(float(k) for k in np.ravel(attrs.get("knots", []))), int(attrs.get("pilot_steps", 0)),
-                   float(attrs.get("noise_free_start_fraction", 0.0)))
+                   float(attrs.get("noise_free_start_fraction", 0.0)),
+                   None if "level" not in attrs else float(attrs["level"]))
 
 
 def epsilon_greedy(expert: np.ndarray, epsilon: np.ndarray, noise: np.ndarray, actions: int) -> np.ndarray:

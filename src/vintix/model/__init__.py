@@ -3,6 +3,7 @@
 from vintix.model.checkpoint import CheckpointError, load_pretrained, read_metadata, save_pretrained
 from vintix.model.model import (
     PRESETS,
+    ActionHead,
     GroupSpec,
     ModelConfig,
     TaskNorm,
@@ -20,6 +21,7 @@ __all__ = [
     "read_metadata",
     "save_pretrained",
     "PRESETS",
+    "ActionHead",
     "GroupSpec",
     "ModelConfig",
     "TaskNorm",

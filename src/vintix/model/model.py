@@ -20,7 +20,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -38,9 +38,14 @@ from vintix.tasks.layouts import ObsLayout
 
 _ACTIVATIONS = {"gelu": nn.GELU, "leaky_relu": nn.LeakyReLU}
 REWARD_ENCODERS = ("linear", "mlp")
-POLICIES = ("deterministic", "gaussian")
+POLICIES = ("deterministic", "gaussian", "flow")
+"""What a Box group's action head is (`ActionHead`); a Discrete group's is always categorical."""
+SAMPLE_NOISE = ("step", "episode")
+"""How often a sampling head draws the noise behind its action (`ModelConfig.sample_noise`)."""
 LOG_STD_RANGE = (-5.0, 1.0)
 """Bounds of a gaussian policy's log-std: a likelihood can otherwise push the std to 0 on exact targets."""
+MAX_FLOW_STEPS = 1000
+"""The most integration steps a flow head may take at play (`ModelConfig.flow_steps`)."""
 
 
 class ModelConfigError(VintixError, ValueError):
@@ -110,10 +115,17 @@ class ModelConfig:
     activation: str = "gelu"
     """activation in encoders and heads: 'gelu', or 'leaky_relu' as in the official release"""
     policy: str = "deterministic"
-    """'deterministic': the head predicts the action, trained by MSE (the paper); 'gaussian': it predicts
-    a mean and a log-std per action channel, trained by Gaussian likelihood, and the agent samples. A
-    sampling model can explore as a posterior-sampling demonstrator does, where the mean action of its
-    histories stands still (a hidden goal equally likely on either side)"""
+    """a Box group's action head (`ActionHead`): 'deterministic', the action, trained by MSE (the paper);
+    'gaussian', a mean and a log-std per action channel, trained by Gaussian likelihood; 'flow', a rectified flow
+    from noise to the action (Vintix II), which can hold a posterior of several modes (left *or* right) where MSE
+    averages them. The agent samples a sampling head's action: it explores as posterior sampling does, where the
+    mean action of its histories stands still (a hidden goal equally likely on either side)"""
+    flow_steps: int = 8
+    """Euler steps a flow head integrates from noise to an action at play (training draws one time per target)"""
+    sample_noise: str = "step"
+    """how often the agent draws a sampling head's noise (a flow's start, a gaussian's z): 'step', a fresh draw every
+    step; 'episode', one draw held for a whole episode, one posterior sample an episode as posterior-sampling RL
+    commits to one hypothesis, instead of dithering between them (no weight depends on it)"""
     reward_encoder: str = "linear"
     """'linear': Linear(1, rew_emb_dim) + activation, as in the official release; 'mlp': two layers, the
     first with biases spread over the reward range, so each unit bends at another reward value"""
@@ -176,6 +188,10 @@ class ModelConfig:
             raise ModelConfigError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}")
         if self.policy not in POLICIES:
             raise ModelConfigError(f"policy must be one of {list(POLICIES)}, got {self.policy!r}")
+        if self.sample_noise not in SAMPLE_NOISE:
+            raise ModelConfigError(f"sample_noise must be one of {list(SAMPLE_NOISE)}, got {self.sample_noise!r}")
+        if not 1 <= self.flow_steps <= MAX_FLOW_STEPS:
+            raise ModelConfigError(f"flow_steps must lie in [1, {MAX_FLOW_STEPS}], got {self.flow_steps}")
         if self.reward_encoder not in REWARD_ENCODERS:
             raise ModelConfigError(
                 f"reward_encoder must be one of {list(REWARD_ENCODERS)}, got {self.reward_encoder!r}")
@@ -441,12 +457,154 @@ def _reward_mlp(config: ModelConfig) -> nn.Sequential:
     return nn.Sequential(*layers)
 
 
-def _action_head(d_model: int, act_dim: int, hidden_layers: int, activation: str) -> nn.Sequential:
-    # Unbounded output: targets are raw actions and MSE needs no squashing.
-    layers: list[nn.Module] = []
-    for _ in range(hidden_layers):
-        layers += [nn.Linear(d_model, d_model), _ACTIVATIONS[activation]()]
-    return nn.Sequential(*layers, nn.Linear(d_model, act_dim))
+class ActionHead(nn.Sequential):
+    """A group's action head: what the backbone's output at step t says about a_t, as one interface.
+
+    Each kind owns its output width, how the group's previous action enters its token (`encode_previous`), its
+    training loss (`loss`) and how it acts (`act`: a draw, or its greedy choice). The model, the trainer and the agent
+    call these and never branch on the kind; a new head is one subclass. The layers are the official release's
+    (``hidden_layers`` of width d_model, then the output), children of this Sequential so that a checkpoint's
+    ``heads.<group>.<i>.weight`` names map onto them unchanged.
+    """
+
+    noise_dim = 0
+    """channels of the standard-normal noise a draw is made of (0: none; the agent may hold it for an episode)"""
+
+    def __init__(self, in_dim: int, d_model: int, out_dim: int, hidden_layers: int, activation: str) -> None:
+        layers: list[nn.Module] = []
+        for i in range(hidden_layers):
+            layers += [nn.Linear(in_dim if i == 0 else d_model, d_model), _ACTIVATIONS[activation]()]
+        super().__init__(*layers, nn.Linear(in_dim if not hidden_layers else d_model, out_dim))
+
+    def encode_previous(self, prev_action: torch.Tensor) -> torch.Tensor:
+        """The previous action as the action encoder's input: a Box action as it is."""
+        return prev_action
+
+    def predict(self, h: torch.Tensor) -> torch.Tensor:
+        """The head's point prediction from backbone outputs ``[..., d_model]``: the (mean) action, or logits."""
+        return self(h)
+
+    def loss(self, h: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """Per-position loss ``[B, T]`` (mean over action channels) of the targets ``[B, T, act_dim]``."""
+        raise NotImplementedError
+
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
+            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Actions ``[B, act_dim]`` (a discrete head: indices ``[B]``) from outputs ``[B, d_model]``, and whether each
+        row's came from finite outputs ``[B]`` (a damaged model's do not). `noise` ``[B, noise_dim]``: the
+        standard-normal draw to act on (zeros: the greedy action); None where the head has none (`noise_dim` 0), which
+        draws with `generator` instead (None: its greedy action)."""
+        actions = self.predict(h)
+        return actions, torch.isfinite(actions).all(dim=-1)
+
+
+class DeterministicHead(ActionHead):
+    """The action itself, trained by MSE (the paper's head)."""
+
+    def loss(self, h: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        return F.mse_loss(self(h).float(), target, reduction="none").mean(dim=-1)
+
+
+class GaussianHead(ActionHead):
+    """A mean and a bounded log-std per channel, trained by Gaussian likelihood; acts on mean + std · noise."""
+
+    def __init__(self, d_model: int, act_dim: int, hidden_layers: int, activation: str) -> None:
+        super().__init__(d_model, d_model, 2 * act_dim, hidden_layers, activation)
+        self.noise_dim = act_dim
+
+    def distribution(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mean, log-std), each ``[..., act_dim]``."""
+        mean, log_std = self(h).chunk(2, dim=-1)
+        return mean, log_std.clamp(*LOG_STD_RANGE)
+
+    def predict(self, h: torch.Tensor) -> torch.Tensor:
+        return self.distribution(h)[0]
+
+    def loss(self, h: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        mean, log_std = self.distribution(h)  # negative log-likelihood, up to a constant
+        variance = (2 * log_std.float()).exp()
+        return F.gaussian_nll_loss(mean.float(), target, variance, reduction="none").mean(dim=-1)
+
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
+            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+        mean, log_std = self.distribution(h)
+        actions = mean if noise is None else mean + log_std.exp() * noise
+        return actions, torch.isfinite(actions).all(dim=-1)
+
+
+class CategoricalHead(ActionHead):
+    """n logits of a Discrete group, trained by cross-entropy on the target index; the previous action enters as the
+    one-hot code of its index. AD and DPT sample: a greedy policy on a flat distribution never explores."""
+
+    def __init__(self, d_model: int, actions: int, hidden_layers: int, activation: str) -> None:
+        super().__init__(d_model, d_model, actions, hidden_layers, activation)
+        self.actions = actions
+
+    def encode_previous(self, prev_action: torch.Tensor) -> torch.Tensor:
+        return F.one_hot(prev_action.long().clamp(0, self.actions - 1), self.actions).float()
+
+    def loss(self, h: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        return F.cross_entropy(self(h).float().transpose(1, 2), target.long(), reduction="none")
+
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
+            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+        logits = self(h).float()
+        finite = torch.isfinite(logits).all(dim=-1)
+        if generator is None:
+            return logits.argmax(dim=-1), finite
+        # multinomial refuses non-finite probabilities: a damaged model's rows draw from flat ones, flagged not finite.
+        probabilities = torch.where(finite.unsqueeze(-1), logits, 0.0).softmax(dim=-1)
+        return torch.multinomial(probabilities, 1, generator=generator).squeeze(-1), finite
+
+
+class FlowHead(ActionHead):
+    """Rectified flow from standard-normal noise to the action (Vintix II), conditioned on the backbone's output: the
+    network reads ``[h | x_τ | τ]`` and gives the velocity ``a − x₀`` that carries ``x₀`` (noise) along the straight
+    line ``x_τ = (1 − τ) x₀ + τ a`` to the action. Trained on one (x₀, τ) draw per target; at play `steps` Euler
+    steps from the noise. A draw is one sample of the action's distribution, so a posterior of several modes (a
+    goal left *or* right) gives one of them, where MSE would average them; starting from zero noise is the greedy
+    action."""
+
+    def __init__(self, d_model: int, act_dim: int, hidden_layers: int, activation: str, steps: int) -> None:
+        super().__init__(d_model + act_dim + 1, d_model, act_dim, hidden_layers, activation)
+        self.noise_dim, self.steps = act_dim, steps
+
+    def velocity(self, h: torch.Tensor, x: torch.Tensor, tau: torch.Tensor) -> torch.Tensor:
+        return self(torch.cat([h, x.to(h.dtype), tau.to(h.dtype)], dim=-1))
+
+    def predict(self, h: torch.Tensor) -> torch.Tensor:
+        return self.integrate(h, torch.zeros(*h.shape[:-1], self.noise_dim, device=h.device, dtype=h.dtype))
+
+    def loss(self, h: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        start = torch.randn_like(target)
+        tau = torch.rand(*target.shape[:-1], 1, device=target.device, dtype=target.dtype)
+        point = (1 - tau) * start + tau * target
+        return F.mse_loss(self.velocity(h, point, tau).float(), target - start, reduction="none").mean(dim=-1)
+
+    def integrate(self, h: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+        """The action the flow carries `noise` to: `steps` Euler steps from τ = 0 to 1."""
+        x = noise.to(h.dtype)
+        for k in range(self.steps):
+            tau = torch.full((*h.shape[:-1], 1), k / self.steps, device=h.device, dtype=h.dtype)
+            x = x + self.velocity(h, x, tau) / self.steps
+        return x
+
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
+            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+        actions = self.predict(h) if noise is None else self.integrate(h, noise)
+        return actions, torch.isfinite(actions).all(dim=-1)
+
+
+def action_head(spec: GroupSpec, config: ModelConfig) -> ActionHead:
+    """The head of a group: categorical for a Discrete one, else the config's `ModelConfig.policy`."""
+    d, layers, activation = config.d_model, config.head_layers, config.activation
+    if spec.discrete:
+        return CategoricalHead(d, spec.act_dim, layers, activation)
+    if config.policy == "gaussian":
+        return GaussianHead(d, spec.act_dim, layers, activation)
+    if config.policy == "flow":
+        return FlowHead(d, spec.act_dim, layers, activation, config.flow_steps)
+    return DeterministicHead(d, d, spec.act_dim, layers, activation)
 
 
 def normalize_inputs(obs: torch.Tensor, reward: torch.Tensor, mean: torch.Tensor, divisor: torch.Tensor,
@@ -573,11 +731,7 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         self.rew_pad = _padding(config.rew_emb_dim) if config.shared_padding and config.pads_reward else None
         self.blocks = nn.ModuleList([Block(config) for _ in range(config.n_layers)])
         self.ln_f = nn.LayerNorm(config.d_model)
-        self.heads = nn.ModuleDict(
-            {g.name: _action_head(config.d_model, g.act_dim * (2 if config.policy == "gaussian" and not g.discrete
-                                                               else 1), config.head_layers, config.activation)
-             for g in groups}
-        )
+        self.heads = nn.ModuleDict({g.name: action_head(g, config) for g in groups})
         self.apply(self._init_weights)
         for name, p in self.named_parameters():
             if name.endswith(("attn.proj.weight", "mlp.proj.weight")):
@@ -693,9 +847,7 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
         `ModelConfig.episode_return` model's: ``[B, T, 2]``, each episode's scaled return so far beside them); a
         discrete group's `prev_action` holds indices ``[B, T]`` (any at an episode start: the padding replaces it)."""
         encoder = self.encoders[group]
-        spec = self.groups[group]
-        if spec.discrete:
-            prev_action = F.one_hot(prev_action.long().clamp(0, spec.act_dim - 1), spec.act_dim).to(obs.dtype)
+        prev_action = self.action_head(group).encode_previous(prev_action).to(obs.dtype)
         owner = self if self.config.shared_padding else encoder
         # The owner has each padding its config uses (`ModelConfig.pads_action`, `pads_reward`).
         return encoder(obs, prev_action, prev_reward, episode_start, owner.act_pad, owner.rew_pad)
@@ -714,18 +866,14 @@ class Vintix(nn.Module, PyTorchModelHubMixin, library_name="vintix", model_card_
             x = block(x, bias)
         return self.ln_f(x)
 
-    def action_distribution(self, group: str, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
-        """Mean action ``[B, T, act_dim]`` from backbone outputs, and its log-std for a gaussian policy
-        (None for a deterministic one); a discrete group's logits ``[B, T, actions]`` (and None)."""
-        out = self.heads[group](h)
-        if self.config.policy == "deterministic" or self.groups[group].discrete:
-            return out, None
-        mean, log_std = out.chunk(2, dim=-1)
-        return mean, log_std.clamp(*LOG_STD_RANGE)
-
     def head(self, group: str, h: torch.Tensor) -> torch.Tensor:
-        """Predicted (mean) actions ``[B, T, act_dim]`` from backbone outputs (a discrete group: logits)."""
-        return self.action_distribution(group, h)[0]
+        """Point predictions ``[B, T, act_dim]`` from backbone outputs: the (mean, or a flow's greedy) action, or a
+        discrete group's logits (`ActionHead.predict`)."""
+        return self.action_head(group).predict(h)
+
+    def action_head(self, group: str) -> ActionHead:
+        """The group's `ActionHead`: its loss and how it acts."""
+        return cast(ActionHead, self.heads[group])
 
     def forward(
         self, group: str, task_idx: torch.Tensor, obs: torch.Tensor, prev_action: torch.Tensor,

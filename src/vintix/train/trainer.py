@@ -24,7 +24,6 @@ from typing import IO, TypeVar
 
 import torch
 import torch.distributed as dist
-import torch.nn.functional as F
 from torch import nn
 from tqdm import tqdm
 
@@ -86,8 +85,8 @@ class NonFiniteLossError(VintixError, RuntimeError):
 
 
 class WindowLoss(nn.Module):
-    """Per-window MSE (a gaussian policy: negative log-likelihood; a discrete group: cross-entropy) of a
-    micro-batch that may mix groups.
+    """Per-window loss of a micro-batch that may mix groups: each group's head's own (`ActionHead.loss`: MSE, a
+    gaussian's negative log-likelihood, a discrete group's cross-entropy, a flow's velocity error).
 
     Each group's windows go through their own encoder, all windows through one backbone call, then
     each group's head. Wrapping this (not the model) in DDP makes the whole mixed-group pass one
@@ -103,20 +102,8 @@ class WindowLoss(nn.Module):
         tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"],
                                    b.get("prev_return")) for g, b in batch.items()]
         hidden = self.model.backbone(torch.cat(tokens))
-        losses = []
-        for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True):
-            mean, log_std = self.model.action_distribution(group, part)
-            target = batch[group]["action"]
-            if self.model.groups[group].discrete:  # logits [B, T, n] against indices [B, T]
-                loss = F.cross_entropy(mean.float().transpose(1, 2), target.long(), reduction="none")
-                losses.append(loss.mean(dim=1))
-                continue
-            if log_std is None:
-                loss = F.mse_loss(mean.float(), target, reduction="none")
-            else:  # a gaussian policy: negative log-likelihood (up to a constant)
-                loss = F.gaussian_nll_loss(mean.float(), target, (2 * log_std.float()).exp(), reduction="none")
-            losses.append(loss.mean(dim=(1, 2)))
-        return torch.cat(losses)
+        return torch.cat([self.model.action_head(group).loss(part, batch[group]["action"]).mean(dim=1)
+                          for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True)])
 
 
 def build_optimizer(model: nn.Module, config: TrainConfig) -> tuple[torch.optim.AdamW, list[str]]:
@@ -244,7 +231,7 @@ def training_threads(requested: int, world_size: int) -> int:
     return max(1, min(cores, cores - round(busy)) // world_size)
 
 
-INFERENCE_ONLY_SETTINGS = ("keep_first_steps",)
+INFERENCE_ONLY_SETTINGS = ("keep_first_steps", "sample_noise", "flow_steps")
 """Model settings no weight depends on (training windows never slide): a fine-tune may change them"""
 
 
