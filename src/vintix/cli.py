@@ -287,6 +287,13 @@ def collect(
                                        "time estimated from measured rates (for --workers), then stop")] = False,
     rates: Annotated[Path | None, typer.Option(help="rates table for --plan (default: the package's, measured by "
                                                   "`vintix bench collect`)")] = None,
+    rollouts_of: Annotated[str | None, typer.Option(
+        help="the model (checkpoint, run folder or shipped name) plays the histories, sampled and without noise, and "
+             "each row records the goal-aware expert's action as its target: DPT's DAgger round "
+             "(vintix.agent.rollouts)")] = None,
+    first_history: Annotated[int | None, typer.Option(
+        help="index of the first history to collect, e.g. the next free one of a folder that a round of "
+             "--rollouts-of joins (default: the recipe's, else 0)")] = None,
 ) -> None:
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
     import time
@@ -304,6 +311,10 @@ def collect(
             plans = [CollectionPlan(task, histories, steps, schedule, seed, envs_per_batch)]
         else:
             raise VintixError("give exactly one of --task or --recipe")
+        if first_history is not None:
+            plans = [dataclasses.replace(p, first_history=first_history) for p in plans]
+        if rollouts_of is not None:
+            return _collect_rollouts(rollouts_of, plans, out, workers)
         if plan:
             untrained = check_demonstrators(plans, untrained_ok=True)  # what collect would refuse, --plan refuses too
             _print_collection_plan(plans, workers, rates)
@@ -322,6 +333,30 @@ def collect(
     speed = f", {new / seconds:,.0f} steps/s" if new else ""
     console.print(f"wrote {len(summaries)} histories ({sum(s.steps for s in summaries):,} steps) under {out}; "
                   f"this run collected {new:,} steps in {seconds:.1f} s{speed}")
+
+
+def _collect_rollouts(checkpoint: str, plans: list[CollectionPlan], out: Path | None, workers: int) -> None:
+    """`vintix collect --rollouts-of`: each plan's histories played by the model, noise-free, the expert's actions
+    recorded as targets (`vintix.agent.rollouts.ModelRollouts`)."""
+    from vintix.agent.rollouts import ModelRollouts
+    from vintix.collect import NoiseSchedule
+    from vintix.collect import collect as collect_histories
+
+    if out is None:
+        raise _fail(VintixError("give --out, the dataset root the rollouts join"))
+    summaries = []
+    try:
+        for plan in plans:
+            player = ModelRollouts(checkpoint, plan.task)
+            # No noise: the model's context must hold the actions it took.
+            played = dataclasses.replace(plan, behaviour="expert", schedule=NoiseSchedule(noise_free_fraction=1.0),
+                             demonstrator=player.source)
+            summaries += collect_histories(played, out, workers=workers, demonstrator=player)
+    except (VintixError, ValueError, FileNotFoundError) as error:
+        raise _fail(error) from None
+    console.print(_collection_summary(summaries))
+    console.print(f"wrote {len(summaries)} rollouts of {checkpoint} ({sum(s.steps for s in summaries):,} steps) under "
+                  f"{out}, histories {plans[0].indices.start}-{plans[0].indices.stop - 1} of each task")
 
 
 def _collection_summary(summaries: list[HistorySummary]) -> Table:

@@ -103,17 +103,22 @@ class CollectionPlan:
     """A demonstrator from outside the package: ``module:callable`` (called with the task name, returns a
     Demonstrator), ``sb3:ALGO:PATH`` / ``sbx:ALGO:PATH`` (a trained model file, unpickled: yours only) or
     ``weights:DIR`` (weights `vintix demonstrator train` wrote); None: the package's own
-    (`vintix.demonstrators.base.external_demonstrator`)."""
+    (`vintix.demonstrators.base.external_demonstrator`). ``rollouts:CHECKPOINT`` records histories a model played
+    (`vintix.agent.rollouts`), which `collect` is handed as its demonstrator."""
+    first_history: int = 0
+    """index of the plan's first history (its files, its seeds): a later collection into the same folder, such as a
+    round of the model's own rollouts beside the histories it was trained on (DAgger), takes the next indices"""
 
     def __post_init__(self) -> None:
         check_field_types(self, CollectionError)
         bad = [f"{k}={v}" for k, v in (("histories", self.histories), ("steps", self.steps),
                                        ("envs_per_batch", self.envs_per_batch)) if v < 1]
+        bad += [f"first_history={self.first_history}"] if self.first_history < 0 else []
         # numpy seed sequences are unsigned; histories record the seed as an HDF5 64-bit integer.
         bad += [f"seed={self.seed}"] if not 0 <= self.seed < 2**63 else []
         if bad:
             raise CollectionError(f"{self.task}: {', '.join(bad)}; histories, steps and envs_per_batch must be >= 1, "
-                                  "0 <= seed < 2**63")
+                                  "first_history >= 0, 0 <= seed < 2**63")
         if self.schedule.pilot_steps and self.schedule.knots:
             raise CollectionError(
                 f"{self.task}: give knots or pilot_steps, not both (a pilot fits each history's knots)")
@@ -125,6 +130,11 @@ class CollectionPlan:
         if self.behaviour != "expert" and self.schedule.pilot_steps:
             raise CollectionError(f"{self.task}: pilot_steps fit knots to the expert's answer to noise; a "
                                   f"{self.behaviour} history has no such answer: drop pilot_steps")
+
+    @property
+    def indices(self) -> range:
+        """The indices of the plan's histories."""
+        return range(self.first_history, self.first_history + self.histories)
 
     def recorded_settings(self, index: int) -> dict[str, Any]:
         """What history `index` of this plan records about how it was made (its file's root attributes)."""
@@ -203,7 +213,7 @@ def history_seeds(task: str, index: int, seed: int) -> HistorySeeds:
 
 def batches(plan: CollectionPlan) -> list[list[int]]:
     k = plan.envs_per_batch
-    return [list(range(start, min(start + k, plan.histories))) for start in range(0, plan.histories, k)]
+    return [list(plan.indices[start:start + k]) for start in range(0, plan.histories, k)]
 
 
 BLOCK_STEPS = 1_000
@@ -407,7 +417,7 @@ def settings_differences(path: Path, plan: CollectionPlan, index: int) -> list[s
 
 def _check_existing_histories(plan: CollectionPlan, root: Path) -> None:
     spec = get_task(plan.task)
-    for index in range(plan.histories):
+    for index in plan.indices:
         path = history_path(root, spec, index)
         differences = settings_differences(path, plan, index) if path.exists() else []
         if differences:
@@ -494,7 +504,7 @@ def check_demonstrators(plans: Sequence[CollectionPlan], untrained_ok: bool = Fa
 def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:
     """A CollectionError now, not a full disk hours from now, when the histories still to collect need more
     space than the folder's file system has free (`history_bytes`)."""
-    missing = sum(history_bytes(get_task(plan.task), plan.steps) for plan in plans for i in range(plan.histories)
+    missing = sum(history_bytes(get_task(plan.task), plan.steps) for plan in plans for i in plan.indices
                   if not history_path(root, get_task(plan.task), i).exists())
     existing = next(p for p in (root, *root.parents) if p.exists())
     free = shutil.disk_usage(existing).free
@@ -541,7 +551,7 @@ def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator
         for job in jobs:
             collect_batch(*job)
     fresh = {history_path(root, get_task(plan.task), i) for plan, indices, *_ in jobs for i in indices}
-    paths = [history_path(root, get_task(plan.task), i) for plan in plans for i in range(plan.histories)]
+    paths = [history_path(root, get_task(plan.task), i) for plan in plans for i in plan.indices]
     return [summarize_history(path, collected_now=path in fresh) for path in paths]
 
 

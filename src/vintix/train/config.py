@@ -207,7 +207,8 @@ class TrainConfig:
 
 
 _SET_HINT = ("(--set values are read as YAML: --set max_steps=500, --set 'tasks=[reach-v3, push-v3]', "
-             "--set model_overrides={mask_reward: true})")
+             "--set model_overrides={mask_reward: true}, or one model field on top of the config's: "
+             "--set model_overrides.policy=flow)")
 
 
 FREE_ON_RESUME = frozenset({
@@ -265,6 +266,10 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
     clashes = [f"--{k} {given[k]} but --set {k}={v}" for k, v in settings_given.items() if k in given and v != given[k]]
     if clashes:
         raise ConfigError(f"{'; '.join(clashes)}: give each value once")
+    for key in [k for k in settings_given if k.startswith("model_overrides.")]:
+        # One model field on top of the config's overrides, where --set model_overrides={...} replaces them all.
+        fields["model_overrides"] = {**(fields.get("model_overrides") or {}),
+                                     key.removeprefix("model_overrides."): settings_given.pop(key)}
     fields.update(settings_given)
     known = {f.name for f in dataclasses.fields(TrainConfig)}
     unknown = sorted(set(fields) - known)
