@@ -48,7 +48,8 @@ class ModelRollouts:
             self._expert = load_demonstrator(self.task)
         # The batch's first stream seeds the agent's draws: a history's rollout depends on its batch's seeds only.
         self._agent.seed = int(rngs[0].integers(2**31))
-        self._agent.reset([self.task] * len(envs), [action_space_of(env.action_space) for env in envs], discard_context=True)
+        spaces = [action_space_of(env.action_space) for env in envs]
+        self._agent.reset([self.task] * len(envs), spaces, discard_context=True)
         self._rewards = np.zeros(len(envs))
         self._starts = np.ones(len(envs), dtype=bool)
 
