@@ -1,8 +1,10 @@
-"""UCB1, Thompson sampling and a uniformly random policy on the bandits a model is evaluated on, scored as `vintix eval`
-scores a model: per episode, the return over the run's optimal return, and the regret (optimal return − return,
-summed over episodes). docs/discrete-tasks.md puts these beside the bandit models.
+"""UCB1, DPT's UCB, Thompson sampling and a uniformly random policy on the bandits a model is evaluated on, scored as
+`vintix eval` scores a model: per episode, the return over the run's optimal return, and the regret (optimal return −
+return, summed over episodes). docs/discrete-tasks.md puts these beside the bandit models.
 
     python scripts/bandit_baselines.py [--seeds 16] [--first-seed 100] [--shots 40] [MODEL_RESULTS ...]
+
+DPT's protocol (Lee et al., 2023: 500 pulls, 200 bandits): --seeds 200 --shots 50.
 
 MODEL_RESULTS: `vintix eval` folders of BernoulliBandit-v0 to print beside the baselines (their episodes.csv).
 """
@@ -41,6 +43,17 @@ class UniformRandom:
 
     def expert_act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
         return np.zeros(len(envs), dtype=np.int64)
+
+
+class DptUcb(LearnerDemonstrator):
+    """UCB with DPT's bonus, 1/√n (its paper's UCB baseline), where UCB1's is √(2 ln t / n)."""
+
+    def act(self, observations: np.ndarray, envs: Sequence[gym.Env]) -> np.ndarray:
+        actions = []
+        for pulls, total in ((arms[:, 0], arms[:, 1]) for arms in self._arms):
+            untried = np.flatnonzero(pulls == 0)
+            actions.append(int(untried[0]) if len(untried) else int(np.argmax(total / pulls + 1 / np.sqrt(pulls))))
+        return np.array(actions, dtype=np.int64)
 
 
 def play(policy: GoalInferringDemonstrator, seeds: list[int], shots: int) -> tuple[np.ndarray, np.ndarray]:
@@ -83,12 +96,13 @@ def main() -> None:
     args = parser.parse_args()
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     runs = {"UCB1": play(LearnerDemonstrator(), seeds, args.shots),
+            "UCB, DPT's bonus": play(DptUcb(), seeds, args.shots),
             "Thompson sampling": play(PosteriorSearchDemonstrator(), seeds, args.shots),
             "uniform random": play(UniformRandom(0), seeds, args.shots)}
     runs |= {str(folder): from_results(folder) for folder in args.results}
-    shown = [1, 2, 5, 10, 20, 40]
+    shown = [1, 2, 5, 10, 20, 40, 50]
     print(f"{TASK}, seeds {seeds[0]}-{seeds[-1]}: return / optimal at episodes {shown} (10 pulls each), "
-          "converged (best 10 episodes), regret after 40 episodes (400 pulls)")
+          f"converged (best 10 episodes), regret after {args.shots} episodes ({10 * args.shots} pulls)")
     for name, (returns, optimal) in runs.items():
         score = (returns / optimal).mean(axis=0)
         converged = max(score[k:k + 10].mean() for k in range(len(score) - 9))
