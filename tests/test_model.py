@@ -323,18 +323,22 @@ def test_every_head_trains_and_acts_through_one_interface(policy):
     assert loss.shape == (2, 12) and torch.isfinite(loss).all()
     loss.mean().backward()  # every parameter of the head is trained
     assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in head.parameters())
-    noise = torch.randn(2, head.noise_dim) if head.noise_dim else None
-    actions, finite = head.act(h[:, -1].detach(), noise, torch.Generator().manual_seed(0))
+    streams = [torch.Generator().manual_seed(i) for i in range(2)]
+    actions, finite = head.act(h[:, -1].detach(), torch.stack([head.draw_noise(g) for g in streams]))
     assert actions.shape == (2, 3) and finite.all()
-    greedy = head.act(h[:, -1].detach(), torch.zeros(2, head.noise_dim) if head.noise_dim else None, None)[0]
+    greedy = head.act(h[:, -1].detach(), None)[0]
     assert torch.allclose(greedy, model.head("B", h[:, -1].detach()), atol=1e-6)
 
 
 def test_a_discrete_group_has_a_categorical_head_whatever_the_policy():
     spec = GroupSpec("D", obs_dim=2, act_dim=5, discrete=True)
     head = action_head(spec, tiny_config(policy="flow"))
-    indices = head.act(torch.zeros(3, tiny_config().d_model), None, torch.Generator().manual_seed(0))[0]
-    assert indices.shape == (3,) and indices.dtype == torch.long
+    h = torch.randn(3, tiny_config().d_model)
+    probabilities = head(h).softmax(-1)
+    uniform = torch.tensor([[0.0], [0.999999], [0.5]])
+    indices = head.act(h, uniform)[0]  # inverse-CDF draws: the first action, the last, the median's
+    assert indices.dtype == torch.long and indices[:2].tolist() == [0, 4]
+    assert probabilities[2, :indices[2]].sum() < 0.5 <= probabilities[2, :indices[2] + 1].sum()
     assert head.encode_previous(torch.tensor([[4, 0]])).tolist() == [[[0, 0, 0, 0, 1], [1, 0, 0, 0, 0]]]
 
 
@@ -354,7 +358,7 @@ def test_a_flow_head_draws_one_of_two_modes_where_the_mse_head_averages_them():
             optimizer.step()
     with torch.no_grad():
         assert abs(heads["deterministic"].predict(h[:1, 0]).item()) < 0.2
-        draws = heads["flow"].act(h[:, 0], torch.randn(64, 1, generator=torch.Generator().manual_seed(1)), None)[0]
+        draws = heads["flow"].act(h[:, 0], torch.randn(64, 1, generator=torch.Generator().manual_seed(1)))[0]
     assert (draws.abs() > 0.6).float().mean() > 0.8  # on a mode, not between them
     assert 0.25 < (draws > 0).float().mean() < 0.75  # both modes
 

@@ -264,7 +264,8 @@ class Agent:
                 raise AgentInputError(f"{error} (or None for torch's setting)") from None
         self.model = model
         self.seed = seed
-        self._generator = torch.Generator(self.device)
+        self._streams: list[torch.Generator] = []
+        """each env's own stream of draws (`reset`'s seeds)"""
         self.tasks: list[AgentTask] = []
         self.cache: KVCache | None = None
         self._groups: dict[str, _GroupBatch] = {}
@@ -304,10 +305,14 @@ class Agent:
 
     @_one_call_at_a_time
     def reset(self, tasks: Sequence[str], action_spaces: Sequence[gym.spaces.Box | gym.spaces.Discrete] | None = None,
-              *, discard_context: bool = False) -> None:
+              *, seeds: Sequence[int] | None = None, discard_context: bool = False) -> None:
         """Start a cold (empty-context) run on one env per task name. Actions are clipped to
         `action_spaces` (default: each task's registry env's action space); a Discrete space's actions are the
         indices 0 to n - 1 of a discrete group's logits.
+
+        `seeds`: one per env, the seed of the env's own stream of draws (with the agent's `seed`): `vintix eval`
+        gives each env its env seed, so a run plays the same alone, in any batch, or through `predict` after
+        ``reset([task], seeds=[env_seed])``. Default: the envs' indices in the batch, 0, 1, ...
 
         This clears the context, which is where in-context learning lives: a new *episode* is an
         ``episode_start`` flag to `act` / `predict`, never a reset. Clearing a context that holds steps
@@ -325,6 +330,7 @@ class Agent:
             raise AgentInputError(f"reset's tasks must be task names (strings), got {wrong[0]!r} among them")
         if action_spaces is not None and len(action_spaces) != len(tasks):
             raise AgentInputError(f"{len(tasks)} tasks but {len(action_spaces)} action spaces; give one per task")
+        streams = self._new_streams(range(len(tasks)) if seeds is None else seeds, len(tasks))
         spaces = action_spaces if action_spaces is not None else [None] * len(tasks)
         self.tasks = [resolve_task(self.model, task, space) for task, space in zip(tasks, spaces, strict=True)]
         self._regroup()
@@ -335,7 +341,16 @@ class Agent:
         self._awaiting_start = np.zeros(len(self.tasks), dtype=bool)
         self._last_rewards = np.zeros(len(self.tasks))  # next-step autoreset: the reward that came with the flag
         self._episode_returns = np.zeros(len(self.tasks))
-        self._generator.manual_seed(self.seed)
+        self._streams = streams
+
+    def _new_streams(self, seeds: Sequence[int], envs: int) -> list[torch.Generator]:
+        """Each of `envs` envs' stream of draws, seeded from the agent's seed and the env's."""
+        whole = all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0 for s in seeds)
+        if isinstance(seeds, str) or len(seeds) != envs or not whole:
+            raise AgentInputError(f"reset's seeds must be one whole number >= 0 per env ({envs}), got "
+                                  f"{list(seeds)[:8]}")
+        states = [np.random.SeedSequence([self.seed, int(s)]).generate_state(2, np.uint32) for s in seeds]
+        return [torch.Generator(self.device).manual_seed(int(a) << 32 | int(b)) for a, b in states]
 
     def _no_actions(self, group: str, envs: int) -> torch.Tensor:
         """The previous actions of `envs` envs of `group` before their first: zeros (an episode start's padding
@@ -371,6 +386,7 @@ class Agent:
         self._last_rewards = self._last_rewards[envs]
         self._episode_returns = self._episode_returns[envs]
         self._regroup()
+        self._streams = [self._streams[i] for i in envs]
         self._prev_action = self._kept_rows(self._prev_action, old_groups, envs)
         self._held_noise = self._kept_rows(self._held_noise, old_groups, envs)
         self.cache.keep(torch.tensor(envs, device=self.device))
@@ -487,8 +503,8 @@ class Agent:
         actions: list[np.ndarray] = [np.empty(0)] * batch
         for group, members in self._groups.items():
             head = self.model.action_head(group)
-            noise = self._noise(group, starts[members.envs.cpu().numpy()], sample) if head.noise_dim else None
-            action, finite = head.act(hidden[members.envs], noise, self._generator if sample else None)
+            noise = self._noise(group, members, starts, sample) if head.noise_dim else None
+            action, finite = head.act(hidden[members.envs], noise)
             if not finite.all():
                 env = int(members.envs[~finite][0])
                 raise AgentOutputError(
@@ -506,16 +522,17 @@ class Agent:
                 actions[i] = np.asarray(a, dtype=np.int64) if discrete else a
         return actions
 
-    def _noise(self, group: str, starts: np.ndarray, sample: bool) -> torch.Tensor:
-        """The standard-normal noise a sampling head acts on for `group`'s envs this step (zeros when not `sample`:
-        its greedy action): a fresh draw every step, or under `ModelConfig.sample_noise` 'episode' the draw of each
-        env's episode start, held to its end (one posterior sample an episode)."""
-        held = self._held_noise[group]
+    def _noise(self, group: str, members: _GroupBatch, starts: np.ndarray, sample: bool) -> torch.Tensor | None:
+        """The draws a sampling head acts on for `group`'s envs this step (None when not `sample`: its greedy
+        action), each env's from its own stream: a fresh draw every step, or under `ModelConfig.sample_noise`
+        'episode' the draw of each env's episode start, held to its end (one posterior sample an episode)."""
         if not sample:
-            return torch.zeros_like(held)
-        fresh = torch.randn(held.shape, generator=self._generator, device=held.device)
+            return None
+        head, held = self.model.action_head(group), self._held_noise[group]
+        envs = members.envs.tolist()
+        fresh = torch.stack([head.draw_noise(self._streams[i]) for i in envs]).to(held.device)
         if self.model.config.sample_noise == "episode":
-            fresh = torch.where(torch.as_tensor(starts, device=held.device).unsqueeze(1), fresh, held)
+            fresh = torch.where(torch.as_tensor(starts[envs], device=held.device).unsqueeze(1), fresh, held)
         self._held_noise[group] = fresh
         return fresh
 

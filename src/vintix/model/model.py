@@ -468,7 +468,8 @@ class ActionHead(nn.Sequential):
     """
 
     noise_dim = 0
-    """channels of the standard-normal noise a draw is made of (0: none; the agent may hold it for an episode)"""
+    """numbers a draw is made of (`draw_noise`; 0: the head acts deterministically); the agent draws them from each
+    env's own stream, so an env's actions do not depend on its batch, and may hold them for an episode"""
 
     def __init__(self, in_dim: int, d_model: int, out_dim: int, hidden_layers: int, activation: str) -> None:
         layers: list[nn.Module] = []
@@ -488,12 +489,14 @@ class ActionHead(nn.Sequential):
         """Per-position loss ``[B, T]`` (mean over action channels) of the targets ``[B, T, act_dim]``."""
         raise NotImplementedError
 
-    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
-            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+    def draw_noise(self, generator: torch.Generator) -> torch.Tensor:
+        """One env's draw ``[noise_dim]``: standard-normal numbers (a categorical head's: a uniform one)."""
+        return torch.randn(self.noise_dim, generator=generator, device=generator.device)
+
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
         """Actions ``[B, act_dim]`` (a discrete head: indices ``[B]``) from outputs ``[B, d_model]``, and whether each
-        row's came from finite outputs ``[B]`` (a damaged model's do not). `noise` ``[B, noise_dim]``: the
-        standard-normal draw to act on (zeros: the greedy action); None where the head has none (`noise_dim` 0), which
-        draws with `generator` instead (None: its greedy action)."""
+        row's came from finite outputs ``[B]`` (a damaged model's do not). `noise` ``[B, noise_dim]``: the draws to act
+        on (`draw_noise`); None: the greedy action."""
         actions = self.predict(h)
         return actions, torch.isfinite(actions).all(dim=-1)
 
@@ -525,8 +528,7 @@ class GaussianHead(ActionHead):
         variance = (2 * log_std.float()).exp()
         return F.gaussian_nll_loss(mean.float(), target, variance, reduction="none").mean(dim=-1)
 
-    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
-            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
         mean, log_std = self.distribution(h)
         actions = mean if noise is None else mean + log_std.exp() * noise
         return actions, torch.isfinite(actions).all(dim=-1)
@@ -546,15 +548,19 @@ class CategoricalHead(ActionHead):
     def loss(self, h: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return F.cross_entropy(self(h).float().transpose(1, 2), target.long(), reduction="none")
 
-    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
-            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+    noise_dim = 1
+
+    def draw_noise(self, generator: torch.Generator) -> torch.Tensor:
+        return torch.rand(1, generator=generator, device=generator.device)
+
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
         logits = self(h).float()
         finite = torch.isfinite(logits).all(dim=-1)
-        if generator is None:
+        if noise is None:
             return logits.argmax(dim=-1), finite
-        # multinomial refuses non-finite probabilities: a damaged model's rows draw from flat ones, flagged not finite.
-        probabilities = torch.where(finite.unsqueeze(-1), logits, 0.0).softmax(dim=-1)
-        return torch.multinomial(probabilities, 1, generator=generator).squeeze(-1), finite
+        # Inverse-CDF sampling: the action whose cumulative probability first passes the uniform draw.
+        cumulative = torch.where(finite.unsqueeze(-1), logits, 0.0).softmax(dim=-1).cumsum(dim=-1)
+        return (cumulative < noise.to(cumulative.dtype)).sum(dim=-1).clamp(max=self.actions - 1), finite
 
 
 class FlowHead(ActionHead):
@@ -589,8 +595,7 @@ class FlowHead(ActionHead):
             x = x + self.velocity(h, x, tau) / self.steps
         return x
 
-    def act(self, h: torch.Tensor, noise: torch.Tensor | None,
-            generator: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+    def act(self, h: torch.Tensor, noise: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
         actions = self.predict(h) if noise is None else self.integrate(h, noise)
         return actions, torch.isfinite(actions).all(dim=-1)
 
