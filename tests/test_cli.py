@@ -1,6 +1,7 @@
 """The `vintix` command line."""
 
 import csv
+import json
 import subprocess
 import sys
 
@@ -10,6 +11,7 @@ from typer.testing import CliRunner
 
 from conftest import HANG_GUARD_S, child_env, fill_up
 from vintix.cli import app
+from vintix.tasks import list_tasks
 
 runner = CliRunner()
 
@@ -24,7 +26,7 @@ def test_version_prints_the_installed_package_version():
 def test_tasks_lists_the_papers_102_the_packages_hidden_goal_meta_rl_and_discrete_ones():
     result = runner.invoke(app, ["tasks"])
     assert result.exit_code == 0  # 102 + point-goal, Reacher-hidden, 3 meta-RL + 9 discrete
-    assert "116 tasks" in result.output and "Hopper-v5" in result.output and "Hand-Pen" in result.output
+    assert len(result.output.splitlines()) == 1 + 116 and "Hopper-v5" in result.output and "Hand-Pen" in result.output
     assert "point-goal-v1" in result.output and "Reacher-hidden-v5" in result.output
     assert "DarkRoom-heldout-v0" in result.output and "5 discrete" in result.output
 
@@ -32,8 +34,24 @@ def test_tasks_lists_the_papers_102_the_packages_hidden_goal_meta_rl_and_discret
 def test_tasks_filters_by_domain_and_split():
     result = runner.invoke(app, ["tasks", "--domain", "industrial_benchmark", "--split", "test"])
     assert result.exit_code == 0
-    assert "5 tasks" in result.output and "industrial-benchmark-80-v1" in result.output
+    assert len(result.output.splitlines()) == 1 + 5 and "industrial-benchmark-80-v1" in result.output
     assert "industrial-benchmark-75-v1" not in result.output
+
+
+def test_tasks_piped_is_one_whole_name_a_line_or_json_and_a_narrow_terminal_cuts_no_name():
+    """`vintix tasks | grep industrial-benchmark-90` finds it; `COLUMNS=80 vintix tasks` shows every name whole."""
+    lines = runner.invoke(app, ["tasks"]).output.splitlines()
+    assert lines[0].split("\t")[:2] == ["task", "domain"]
+    found = [line.split("\t")[0] for line in lines if "industrial-benchmark-90" in line]
+    assert found == ["industrial-benchmark-90-v1"]
+    listed = json.loads(runner.invoke(app, ["tasks", "--json", "--domain", "icrl"]).output)
+    assert len(listed) == 9 and {"task": "DarkRoom-v0", "act": "5 discrete"} in [
+        {"task": t["task"], "act": t["act"]} for t in listed]
+    script = ("import sys, vintix.cli as c; c._ON_TERMINAL = True; c.console = c.Console(width=80, "
+              "force_terminal=False); sys.argv = ['vintix', 'tasks']; c.app()")
+    shown = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=child_env()).stdout
+
+    assert all(task.name in shown for task in list_tasks())
 
 
 def test_unknown_filter_exits_with_a_message():

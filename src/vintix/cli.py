@@ -7,6 +7,7 @@ import dataclasses
 import errno
 import importlib.util
 import io
+import json
 import os
 import sys
 import warnings
@@ -201,22 +202,32 @@ def tasks(
                                                     "(the discrete benchmarks) or custom")] = None,
     split: Annotated[str | None, typer.Option(help="train or test")] = None,
     group: Annotated[str | None, typer.Option(help="encoder/head group, e.g. metaworld")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="a JSON list of the tasks, one object each")] = False,
 ) -> None:
-    """List the task registry (reference scores are the paper's)."""
+    """List the task registry (reference scores are the paper's). On a terminal a table that never cuts a name;
+    piped, plain tab-separated text, one task a line under a header, for grep and cut."""
     try:
         selected = list_tasks(domain=domain, split=split, group=group)
     except VintixError as error:
         raise _fail(error) from None
-    table = Table(title=f"{len(selected)} tasks (random/expert: paper's published scores)")
-    for column in ("task", "domain", "group", "obs", "act", "episode", "reward×", "split", "random", "expert"):
-        table.add_column(column, justify="right" if column in ("obs", "act", "episode", "reward×") else "left")
-    for t in selected:
-        table.add_row(
-            t.name, t.domain, t.group, str(t.obs_dim), f"{t.act_dim} discrete" if t.discrete else str(t.act_dim),
-            str(t.episode_length), f"{t.reward_scale:g}",
-            t.split, _paper_score(t.paper_random), _paper_score(t.paper_expert),
-        )
-    console.print(table)
+    columns = ("task", "domain", "group", "obs", "act", "episode", "reward_scale", "split", "random", "expert")
+    rows = [(t.name, t.domain, t.group, str(t.obs_dim), f"{t.act_dim} discrete" if t.discrete else str(t.act_dim),
+             str(t.episode_length), f"{t.reward_scale:g}", t.split, _paper_score(t.paper_random),
+             _paper_score(t.paper_expert)) for t in selected]
+    if as_json:
+        typer.echo(json.dumps([dict(zip(columns, row, strict=True)) for row in rows], indent=1))
+    elif not _ON_TERMINAL:
+        typer.echo("\n".join("\t".join(row) for row in [columns, *rows]))
+    else:
+        table = Table(title=f"{len(selected)} tasks (random/expert: paper's published scores)")
+        for column in columns:
+            # The name never folds or cuts (a narrow terminal folds the other columns instead).
+            table.add_column(column, justify="right" if column in ("obs", "act", "episode", "reward_scale") else "left",
+                             no_wrap=column == "task", min_width=max(len(r[0]) for r in rows) if column == "task" else
+                             None, overflow="fold")
+        for row in rows:
+            table.add_row(*row)
+        console.print(table)
 
 
 DEFAULT_CHECK_TASKS = ["Hopper-v5", "HalfCheetah-v5", "Reacher-v5", "pick-place-v3", "door-open-v3",
