@@ -306,3 +306,19 @@ def test_eval_prints_a_tasks_means_and_a_domains_iqm_as_the_report_gives_them(tm
     cells = {line.split("│")[1].strip(): line.split("│")[2:] for line in result.output.splitlines() if "│" in line}
     assert cells["point-goal-v1"][1].strip() == f"{np.mean(first):.2f}"  # after the variation column
     assert cells["toy train"][0].strip() == f"{float(iqm(first)):.2f}"
+
+
+@pytest.mark.parametrize("command", [["collect", "--task", "point-goal-v1", "--histories", "1", "--steps", "20"],
+                                     ["demonstrator", "eval", "--task", "point-goal-v1", "--episodes", "1"]])
+def test_collect_and_demonstrator_take_threads(tmp_path, command):
+    import torch
+
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        out = tmp_path / ("data" if command[0] == "collect" else "scores.csv")
+        result = runner.invoke(app, [*command, "--threads", "1", "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)

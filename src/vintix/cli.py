@@ -100,6 +100,19 @@ app.add_typer(bench_app, name="bench")
 # The backslash keeps typer's rich help from reading "[cluster]" as markup and dropping it.
 _RAY_HELP = ("spread the work over a Ray cluster: 'auto' (the running one, else a local instance) or its address, "
              "e.g. host:6379 or ray://host:10001; needs pip install 'vintix\\[cluster]'")
+ThreadsOption = Annotated[int | None, typer.Option(
+    min=1, max=MAX_THREADS, help="torch CPU threads of this process (default: torch's, one per core; 1 leaves the "
+    "other cores to other work)")]
+"""`--threads` of the commands whose work is torch's (a trained demonstrator's policy) beside the simulator's."""
+
+
+def _use_threads(threads: int | None) -> None:
+    if threads is not None:
+        import torch
+
+        torch.set_num_threads(threads)
+
+
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns, and its lines of
 # text are never hard-wrapped: an error naming a long path stays one line that a log or a grep sees whole.
 _ON_TERMINAL = sys.stdout.isatty()
@@ -305,8 +318,10 @@ def collect(
     first_history: Annotated[int | None, typer.Option(
         help="index of the first history to collect, e.g. the next free one of a folder that a round of "
              "--rollouts-of joins (default: the recipe's, else 0)")] = None,
+    threads: ThreadsOption = None,
 ) -> None:
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
+    _use_threads(threads)
     import time
 
     from vintix.collect import CollectionPlan, NoiseSchedule, check_demonstrators
@@ -431,8 +446,10 @@ def demonstrator_train(
     update_package_weights: Annotated[bool, typer.Option(
         "--update-package-weights", help="write the weights into the package instead, replacing the shipped "
         "demonstrator of the group that every collection uses")] = False,
+    threads: ThreadsOption = None,
 ) -> None:
     """Train a MuJoCo or Industrial Benchmark demonstrator with Stable-Baselines3 and save its weights."""
+    _use_threads(threads)
     from stable_baselines3.common.callbacks import BaseCallback
 
     from vintix.demonstrators.trained import shipped_weights_dir
@@ -486,8 +503,10 @@ def demonstrator_eval(
     weights: Annotated[Path | None, typer.Option(
         help="score the trained weights in this folder instead of the shipped ones (e.g. a run's best check, "
         "`vintix demonstrator runs`)")] = None,
+    threads: ThreadsOption = None,
 ) -> None:
     """Score demonstrators and a uniform-random policy; record both in a score table (--out)."""
+    _use_threads(threads)
     from vintix.demonstrators import load_demonstrator
     from vintix.demonstrators.scores import UniformRandomPolicy, measure
     from vintix.tasks.scores import record_scores, reference, scores_path
@@ -596,8 +615,10 @@ def demonstrator_histories(
     weights: Annotated[Path | None, typer.Option(
         help="a meta-RL task: its goal-aware expert's trained weights in this folder instead of the shipped ones")
         ] = None,
+    threads: ThreadsOption = None,
 ) -> None:
     """How a demonstrator that infers the goal from rewards does alone, episode after episode, without noise."""
+    _use_threads(threads)
     import numpy as np
 
     from vintix.demonstrators import BEHAVIOURS, GoalInferringDemonstrator, load_demonstrator
