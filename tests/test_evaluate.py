@@ -354,3 +354,16 @@ def test_a_sampled_seed_plays_the_same_alone_in_a_batch_and_through_predict(mode
             obs, _ = env.reset()
             returns.append(0.0)
     np.testing.assert_allclose(returns[:3], alone.returns[0], rtol=tolerance)
+
+
+def test_eval_may_hold_a_sampling_heads_noise_for_an_episode_whatever_the_model_says():
+    from vintix.evaluate import EvalConfig
+    from vintix.evaluate.config import EvalConfigError
+
+    agent = Agent(tiny_model(policy="flow"))
+    held = evaluate_shots(agent, "reach-v3", shots=2, seeds=1, first_seed=100, sample_noise="episode")
+    assert agent.sample_noise == "episode"
+    fresh = evaluate_shots(agent, "reach-v3", shots=2, seeds=1, first_seed=100)
+    assert agent.sample_noise == "step" and not np.allclose(held.returns, fresh.returns)
+    with pytest.raises(EvalConfigError, match="sample_noise 'run' is unknown"):
+        EvalConfig(sample_noise="run")

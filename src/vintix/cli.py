@@ -1161,6 +1161,9 @@ def eval_command(
     greedy: Annotated[bool, typer.Option(
         "--greedy", help="discrete tasks: act on the argmax of the model's logits (a gaussian policy: its mean) "
         "instead of a draw; by default the policy samples, as AD and DPT are evaluated")] = EvalConfig.greedy,
+    sample_noise: Annotated[str | None, typer.Option(
+        help="a sampling head's draws: 'step' (a fresh one every step) or 'episode' (one held for each episode, one "
+             "posterior sample an episode); default: the model's own setting")] = None,
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, max=MAX_THREADS, help="torch CPU threads; 1 suits small models, whose "
                                          "steps are many tiny ops that a second thread slows down on a busy "
@@ -1185,7 +1188,7 @@ def eval_command(
         config = EvalConfig(tasks=tasks, shots=shots, seeds=seeds, first_seed=first_seed,
                             variation=parse_variation(variation or []), prompt_from=prompt_from,
                             prompt_steps=prompt_steps, batch_envs=batch_envs, reward_input=reward_input,
-                            ml1=ml1, greedy=greedy)
+                            ml1=ml1, greedy=greedy, sample_noise=sample_noise)
         resolved = resolve_checkpoint(checkpoint)
         agent = Agent.from_pretrained(resolved, device)
         rows, notes = evaluate(agent, config, out, checkpoint_name(checkpoint, resolved), label, True, ray,

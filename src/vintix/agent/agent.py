@@ -264,6 +264,9 @@ class Agent:
                 raise AgentInputError(f"{error} (or None for torch's setting)") from None
         self.model = model
         self.seed = seed
+        self.sample_noise = model.config.sample_noise
+        """how often a sampling head draws its noise: 'step' or 'episode' (`ModelConfig.sample_noise`, the model's
+        own by default; no weight depends on it)"""
         self._streams: list[torch.Generator] = []
         """each env's own stream of draws (`reset`'s seeds)"""
         self.tasks: list[AgentTask] = []
@@ -531,7 +534,7 @@ class Agent:
         head, held = self.model.action_head(group), self._held_noise[group]
         envs = members.envs.tolist()
         fresh = torch.stack([head.draw_noise(self._streams[i]) for i in envs]).to(held.device)
-        if self.model.config.sample_noise == "episode":
+        if self.sample_noise == "episode":
             fresh = torch.where(torch.as_tensor(starts[envs], device=held.device).unsqueeze(1), fresh, held)
         self._held_noise[group] = fresh
         return fresh

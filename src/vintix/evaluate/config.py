@@ -11,6 +11,7 @@ from pathlib import Path
 
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
+from vintix.model.model import SAMPLE_NOISE
 
 REWARD_INPUTS = ("true", "zero", "shuffled", "other-goal")
 """What `EvalConfig.reward_input` may feed back to the model."""
@@ -67,6 +68,9 @@ class EvalConfig:
     greedy: bool = False
     """act on the argmax of a discrete group's logits (a gaussian policy's mean) instead of a draw; by default the
     policy samples, as AD and DPT evaluate (a greedy policy on a flat distribution never explores)"""
+    sample_noise: str | None = None
+    """how often a sampling head draws its noise, 'step' or 'episode' (`ModelConfig.sample_noise`: one draw held for
+    an episode is one posterior sample an episode); None: the model's own setting"""
 
     def __post_init__(self) -> None:
         # Checked before any env runs: shots=0 used to crash only after the whole evaluation.
@@ -82,6 +86,9 @@ class EvalConfig:
             raise EvalConfigError("no tasks to evaluate; name task names, domains or splits")
         if self.ml1:
             self._check_ml1()
+        if self.sample_noise not in (None, *SAMPLE_NOISE):
+            raise EvalConfigError(f"sample_noise {self.sample_noise!r} is unknown; choose one of "
+                                  f"{', '.join(SAMPLE_NOISE)}")
         if self.reward_input not in REWARD_INPUTS:
             raise EvalConfigError(f"reward_input {self.reward_input!r} is unknown; choose one of "
                                   f"{', '.join(map(repr, REWARD_INPUTS))}")

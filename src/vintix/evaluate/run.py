@@ -303,6 +303,7 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
             for env, (_, seed) in zip(envs, batch, strict=True):
                 assert isinstance(env.unwrapped, MetaWorldTaskEnv)  # `_evaluate` refuses other tasks
                 env.unwrapped.use_ml1_test_goal(seed)  # run i: ML1's test goal first_seed + i
+        agent.sample_noise = config.sample_noise or agent.model.config.sample_noise
         # Each batch is a new run; each env draws from its env seed's own stream: a run does not depend on its batch.
         agent.reset([spec.name for spec, _ in batch], [action_space_of(env.action_space) for env in envs],
                     seeds=[seed for _, seed in batch], discard_context=True)
