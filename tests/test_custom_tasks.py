@@ -181,3 +181,38 @@ def test_the_demonstrator_of_a_custom_task_must_be_named(no_custom_tasks, tmp_pa
     vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=200)
     with pytest.raises(VintixError, match=textwrap.shorten("name one in the recipe, demonstrator:", 60)):
         load_demonstrator("Pendulum-v1")
+
+
+def array_reward_pendulum(seed=None):
+    """A custom env that returns its reward as np.array([r]) (a newcomer's slip)."""
+    import gymnasium as gym
+
+    class ArrayReward(gym.Wrapper):
+        def step(self, action):
+            observation, reward, terminated, truncated, info = self.env.step(action)
+            return observation, np.array([reward]), terminated, truncated, info
+
+    return ArrayReward(gym.make("Pendulum-v1"))
+
+
+def test_a_reward_that_is_not_one_number_is_one_clear_error_and_a_missing_success_flag_a_note(no_custom_tasks):
+    from vintix.agent import Agent
+    from vintix.evaluate import evaluate_shots
+    from vintix.evaluate.run import no_success_notes
+    from vintix.model import GroupSpec, ModelConfig, TaskNorm, Vintix
+
+    vintix.register_task("array-pendulum", env_factory="test_custom_tasks:array_reward_pendulum", obs_dim=3,
+                         act_dim=1, episode_length=20)
+    env = make_env("array-pendulum", seed=0)
+    env.reset()
+    with pytest.raises(TaskSpecError, match=r"task 'array-pendulum': its env's step returned the reward "
+                                            r"array\(\[.*\]\) \(ndarray of shape \(1,\)\); a reward is one number"):
+        env.step(env.action_space.sample())
+    vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=20)
+    model = Vintix(ModelConfig(n_layers=1, n_heads=1, obs_emb_dim=6, act_emb_dim=6, rew_emb_dim=4, mlp_dim=8,
+                               context_len=64), [GroupSpec("Pendulum-v1", 3, 1)],
+                   [TaskNorm("Pendulum-v1", "Pendulum-v1", [0.0] * 3, [1.0] * 3)])
+    runs = evaluate_shots(Agent(model), "Pendulum-v1", shots=1, seeds=1)
+    assert np.isnan(runs.success).all()
+    [note] = no_success_notes([{"task": "Pendulum-v1", "success": ""}])
+    assert "Pendulum-v1: its env's step never put 'success' in info" in note and "at any of its steps" in note

@@ -422,7 +422,17 @@ def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: st
         } | ({"goal_protocol": ML1_PROTOCOL if config.ml1 else GOAL_PROTOCOL} if any(map(has_hidden_goal, specs))
              else {})
           | ({"custom_tasks": custom} if (custom := custom_specs([s.name for s in specs])) else {}))
-    return rows, notes + missing
+    return rows, notes + missing + no_success_notes(rows)
+
+
+def no_success_notes(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """A note for each task of your own whose env never reported ``info["success"]``, so that its missing success
+    columns are said, not silent (the package's tasks without a flag, MuJoCo's and the bandit's, are documented)."""
+    custom = custom_specs(sorted({row["task"] for row in rows}))
+    flagged = {row["task"] for row in rows if row["success"] != ""}
+    return [f"{task}: its env's step never put 'success' in info, so no success rate is reported; a task with one "
+            "counts an episode a success when info['success'] is true at any of its steps" for task in custom
+            if task not in flagged]
 
 
 def summarize(rows: Sequence[dict[str, Any]], table: str = "paper",

@@ -47,6 +47,7 @@ from types import ModuleType
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import yaml
 
 from vintix.errors import PluginError, VintixError, call_plugin
@@ -277,6 +278,25 @@ def untrusted(what: str, named_by: str, code: str) -> UntrustedCodeError:
         f"({TRUST_VARIABLE}=1; in Python, trust_code=True)")
 
 
+class NumberRewards(gym.Wrapper):
+    """A custom env whose step returns a reward that is not one number (``np.array([r])``, a list) raises one
+    TaskSpecError naming the task and the fix, where the collector and the agent would otherwise fail far from it."""
+
+    def __init__(self, env: gym.Env, task: str) -> None:
+        super().__init__(env)
+        self.task = task
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        observation, given, terminated, truncated, info = self.env.step(action)
+        reward: Any = given  # typed as a float by gymnasium; an env of one's own may return anything
+        number = np.ndim(reward) == 0 and np.issubdtype(np.asarray(reward).dtype, np.number)
+        if not number or isinstance(reward, (bool, np.bool_)):
+            raise TaskSpecError(f"task {self.task!r}: its env's step returned the reward {reward!r} "
+                                f"({type(reward).__name__}{f' of shape {np.shape(reward)}' if np.ndim(reward) else ''}"
+                                "); a reward is one number: return float(reward) from step()")
+        return observation, float(reward), terminated, truncated, info
+
+
 def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
     """`spec`'s env, capped at its episode length, checked against its dims and action bounds."""
     refuse_untrusted_code(spec)
@@ -299,7 +319,7 @@ def make_custom_env(spec: TaskSpec, **kwargs: Any) -> gym.Env:
                                     f"({error.__cause__})") from error.__cause__
             raise
     check_env_fits(spec, env)
-    return env
+    return NumberRewards(env, spec.name)
 
 
 def import_env_module(spec: TaskSpec) -> None:
