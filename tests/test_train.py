@@ -153,6 +153,16 @@ def test_resume_with_other_settings_or_data_is_refused_unless_accepted(metaworld
     assert accepted.step == 1
 
 
+def test_resume_below_the_checkpoints_step_is_refused_and_a_moved_max_steps_is_said(metaworld_data, tmp_path, capsys):
+    out = tmp_path / "run"
+    Trainer(make_config(metaworld_data, out, max_steps=3, checkpoint_every=3)).run()
+    with pytest.raises(ConfigError, match=r"is at step 3, past max_steps=2: a resumed run cannot go back"):
+        Trainer(make_config(metaworld_data, out, max_steps=2))
+    capsys.readouterr()
+    assert Trainer(make_config(metaworld_data, out, max_steps=5)).step == 3
+    assert "note: max_steps 3 -> 5: the learning rate from step 3 on follows" in capsys.readouterr().out
+
+
 def test_resume_into_a_different_model_config_is_refused(metaworld_data, tmp_path):
     out = tmp_path / "run"
     Trainer(make_config(metaworld_data, out, max_steps=1)).run()

@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TypeVar
+from typing import IO, Any, TypeVar
 
 import torch
 import torch.distributed as dist
@@ -431,6 +431,7 @@ class Trainer:
                     + ". Re-run with the original data and settings, train into a new --out, or accept the changes "
                     "with --set allow_resume_changes=true"
                 )
+            self._check_max_steps(meta.get("extra", {}), resume)
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
             self.model = load_pretrained(resume)
         elif config.init_from is not None:
@@ -456,6 +457,18 @@ class Trainer:
         if scorer is not None and config.select_tasks:  # a bad selection task fails now, not at the first selection
             select_tasks(config.select_tasks, [group.name for group in self.data.groups])
         self.best_score = best_score(self.out)
+
+    def _check_max_steps(self, extra: dict[str, Any], resume: Path) -> None:
+        """A resume below the checkpoint's step is refused, and one that moves max_steps says what that does: the
+        cosine schedule ends at max_steps, so the learning rate from here on follows the new end."""
+        step = int(extra.get("step", 0))
+        before = (extra.get("train_config") or {}).get("max_steps")
+        if step > self.config.max_steps:
+            raise ConfigError(f"{resume} is at step {step:,}, past max_steps={self.config.max_steps:,}: a resumed run "
+                              f"cannot go back. Train into a new --out, or --set max_steps={step:,} or more")
+        if before not in (None, self.config.max_steps) and self.dist.is_main:
+            print(f"note: max_steps {before:,} -> {self.config.max_steps:,}: the learning rate from step {step:,} on "
+                  "follows a cosine that ends at the new max_steps")
 
     def _load_data(self) -> TrainingData:
         # Rank 0 computes (and caches) the normalization statistics; the others then read the cache.
