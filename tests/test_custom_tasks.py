@@ -216,3 +216,28 @@ def test_a_reward_that_is_not_one_number_is_one_clear_error_and_a_missing_succes
     assert np.isnan(runs.success).all()
     [note] = no_success_notes([{"task": "Pendulum-v1", "success": ""}])
     assert "Pendulum-v1: its env's step never put 'success' in info" in note and "at any of its steps" in note
+
+
+def pendulum_with_an_optimum(seed=None):
+    """Pendulum-v1 whose env says the most an episode can return under its goal (as the discrete benchmarks' do)."""
+    from gymnasium.envs.classic_control.pendulum import PendulumEnv
+
+    class WithOptimum(PendulumEnv):
+        def optimal_return(self):
+            return -2.5
+
+    return WithOptimum()
+
+
+def test_a_custom_env_that_offers_its_optimum_fills_the_optimal_column(no_custom_tasks):
+    from vintix.agent import Agent
+    from vintix.evaluate import evaluate_shots
+    from vintix.model import GroupSpec, ModelConfig, TaskNorm, Vintix
+
+    vintix.register_task("optimum-pendulum", env_factory="test_custom_tasks:pendulum_with_an_optimum", obs_dim=3,
+                         act_dim=1, episode_length=20)
+    model = Vintix(ModelConfig(n_layers=1, n_heads=1, obs_emb_dim=6, act_emb_dim=6, rew_emb_dim=4, mlp_dim=8,
+                               context_len=64), [GroupSpec("p", 3, 1)], [TaskNorm("optimum-pendulum", "p", [0.0] * 3,
+                                                                                  [1.0] * 3)])
+    runs = evaluate_shots(Agent(model), "optimum-pendulum", shots=2, seeds=1)
+    np.testing.assert_allclose(runs.scores, runs.returns / -2.5)  # the score is return over the env's optimum

@@ -346,6 +346,12 @@ def references(tasks: Sequence[str]) -> tuple[dict[str, dict[str, Reference | No
     return found, notes
 
 
+OPTIMAL_REFERENCE = Reference(0.0, 1.0, "the optimal return the env gives for each run's own goal (its "
+                              "optimal_return())", per_goal=True)
+"""The 'ours' reference of a task of your own with no reference scores whose env offers `optimal_return`: a score
+is the return over the optimum, as on the discrete benchmarks."""
+
+
 def add_normalized_scores(rows: list[dict[str, Any]], refs: dict[str, dict[str, Reference | None]]) -> None:
     """Add `normalized_<table>` to every row (empty where the table lacks the task)."""
     for row in rows:
@@ -407,6 +413,8 @@ def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: st
     refs, missing = references([s.name for s in specs])
     started = time.time()
     rows = run_episodes(agent, config, specs, progress, ray, checkpoint)
+    refs["ours"] |= {task: OPTIMAL_REFERENCE for task in custom_specs(sorted({row["task"] for row in rows}))
+                     if refs["ours"][task] is None and all(row["optimal"] != "" for row in rows if row["task"] == task)}
     add_normalized_scores(rows, refs)
     if out is not None:
         model = agent.model
