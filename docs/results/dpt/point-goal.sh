@@ -27,3 +27,10 @@ for head in deterministic flow; do
     done
   done
 done
+# Posterior sampling that commits: each flow model again, its noise held for each episode instead of drawn each step.
+for round in $(seq 0 "$rounds"); do
+  for reward in true zero; do
+    $vintix eval --checkpoint "runs/flow-round$round" --tasks point-goal-v1 --shots 10 --seeds 30 --first-seed 100 \
+      --reward-input $reward --sample-noise episode --out "results/flow-round$round-episode-noise/$reward" --threads 1
+  done
+done
