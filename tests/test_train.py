@@ -153,6 +153,21 @@ def test_resume_with_other_settings_or_data_is_refused_unless_accepted(metaworld
     assert accepted.step == 1
 
 
+def test_training_notes_histories_longer_than_a_window_that_an_evaluation_starts_at_a_runs_first_step(
+        metaworld_data, tmp_path):
+    """600-step histories of 100-step episodes in a 128-step window: an evaluation of one episode shows the model a
+    context from the run's start, and most training windows start elsewhere."""
+    from vintix.train.trainer import window_sizing_notes
+
+    data = load_training_data(metaworld_data, ["reach-v3"], stats_cache_dir=tmp_path)
+    [note] = window_sizing_notes(data, 128, keep_first_steps=0, eval_shots=1)
+    assert "reach-v3: its histories (600 steps) are longer than the 128-step window" in note
+    assert "the selection's 1-episode runs" in note and "keep_first_steps" in note
+    assert window_sizing_notes(data, 128, keep_first_steps=0, eval_shots=8) == []  # the run outgrows the window
+    assert window_sizing_notes(data, 128, keep_first_steps=100, eval_shots=1) == []  # its start is kept
+    assert window_sizing_notes(data, 600, keep_first_steps=0, eval_shots=None) == []  # history = window
+
+
 def test_resume_below_the_checkpoints_step_is_refused_and_a_moved_max_steps_is_said(metaworld_data, tmp_path, capsys):
     out = tmp_path / "run"
     Trainer(make_config(metaworld_data, out, max_steps=3, checkpoint_every=3)).run()

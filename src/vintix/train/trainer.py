@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, TypeVar
 
+import numpy as np
 import torch
 import torch.distributed as dist
 from torch import nn
@@ -104,6 +105,28 @@ class WindowLoss(nn.Module):
         hidden = self.model.backbone(torch.cat(tokens))
         return torch.cat([self.model.action_head(group).loss(part, batch[group]["action"]).mean(dim=1)
                           for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True)])
+
+
+def window_sizing_notes(data: TrainingData, window_len: int, keep_first_steps: int,
+                        eval_shots: int | None) -> list[str]:
+    """Where training windows will not look like what an evaluation of `eval_shots` episodes (the in-context
+    selection's; None: not known) shows the agent: its context starts at a run's first step while it fits the window,
+    and a history longer than the window gives mostly windows that start mid-history (docs/training.md#sizing)."""
+    notes = []
+    for task in data.tasks:
+        longest = max((h.steps for h in task.histories), default=0)
+        lengths = [np.diff(h.bounds) for h in task.histories]
+        episode = int(np.median(np.concatenate(lengths))) if any(len(x) for x in lengths) else 1
+        fits = window_len // max(episode, 1)
+        if longest > window_len and not keep_first_steps and (eval_shots is None or eval_shots <= fits):
+            shown = f"an evaluation of up to {fits} episodes" if eval_shots is None else \
+                f"the selection's {eval_shots}-episode runs"
+            notes.append(f"{task.name}: its histories ({longest:,} steps) are longer than the {window_len:,}-step "
+                         f"window, so most training windows start mid-history, while {shown} show the model a "
+                         "context that starts at the run's first episode; for those, make histories as long as the "
+                         "window, or keep their start (keep_first_steps) (docs/training.md#sizing-histories-and-"
+                         "windows)")
+    return notes
 
 
 def build_optimizer(model: nn.Module, config: TrainConfig) -> tuple[torch.optim.AdamW, list[str]]:
@@ -595,6 +618,9 @@ class Trainer:
                   f"{where} at step {self.step}")
             if cfg.expert_distillation:  # the ED ablation, or (on every row) the recorded-target objective
                 print("demonstrator-action targets: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
+            for note in window_sizing_notes(self.data, self.window_len, self.model.config.keep_first_steps,
+                                            cfg.select_shots if cfg.select_every else None):
+                print(f"note: {note}")
         # Per group: summed window loss, windows, training FLOPs since the last log line.
         sums = torch.zeros(len(groups), 3, dtype=torch.float64, device=self.device)
         # disable=None: quiet when not on a terminal, where each redraw would be a line of the log
