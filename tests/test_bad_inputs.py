@@ -1822,7 +1822,8 @@ def python_dash_m() -> str | None:
     env = child_env()
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "industrial_benchmark"],
                             capture_output=True, text=True, env=env, timeout=HANG_GUARD_S)
-    return None if result.returncode == 0 and "21 tasks" in result.stdout else f"exit {result.returncode}"
+    listed = len(result.stdout.splitlines()) - 1  # under a header line
+    return None if result.returncode == 0 and listed == 21 else f"exit {result.returncode}, {listed} tasks"
 
 
 documented("cli", "python -m vintix runs the CLI", python_dash_m)

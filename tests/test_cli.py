@@ -165,7 +165,8 @@ def test_python_dash_m_vintix_runs_the_cli():
     result = subprocess.run([sys.executable, "-m", "vintix", "tasks", "--domain", "mujoco"],
                             capture_output=True, text=True, env=env, timeout=HANG_GUARD_S)
     assert result.returncode == 0, result.stderr
-    assert "15 tasks" in result.stdout and "Pusher-v5" in result.stdout  # the paper's 11, Reacher-hidden, 3 meta-RL
+    # a header, then the paper's 11, Reacher-hidden and the 3 meta-RL tasks
+    assert len(result.stdout.splitlines()) == 1 + 15 and "Pusher-v5" in result.stdout
     usage = subprocess.run([sys.executable, "-m", "vintix", "--help"], capture_output=True, text=True, env=env,
                            timeout=HANG_GUARD_S)
     assert usage.returncode == 0 and "Usage: vintix" in usage.stdout

@@ -132,7 +132,7 @@ def test_an_entry_point_registers_its_tasks_in_every_process(plugin):
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: vintix-pendulum\nVersion: 0.1\n")
     (dist / "entry_points.txt").write_text("[vintix.tasks]\npendulum = pendulum_plugin:register\n")
     output = vintix_cli("tasks", "--domain", "custom", cwd=plugin)
-    assert "Pendulum-v1" in output and "1 tasks" in output
+    assert output.splitlines()[1].startswith("Pendulum-v1\tcustom") and len(output.splitlines()) == 2
 
 
 def test_a_recipe_demonstrator_and_a_model_file_demonstrator(plugin, no_custom_tasks):
@@ -241,3 +241,23 @@ def test_a_custom_env_that_offers_its_optimum_fills_the_optimal_column(no_custom
                                                                                   [1.0] * 3)])
     runs = evaluate_shots(Agent(model), "optimum-pendulum", shots=2, seeds=1)
     np.testing.assert_allclose(runs.scores, runs.returns / -2.5)  # the score is return over the env's optimum
+
+
+def test_a_checkpoint_keeps_its_groups_held_out_task_of_your_own_so_a_new_process_evaluates_it(no_custom_tasks,
+                                                                                                tmp_path):
+    """A held-out split (its own task, the same group) that no history was collected on travels with the model."""
+    from vintix.agent import Agent
+    from vintix.evaluate import evaluate_shots
+    from vintix.model import GroupSpec, ModelConfig, TaskNorm, Vintix, save_pretrained
+
+    for name, split in (("pendulum-train", "train"), ("pendulum-heldout", "test")):
+        vintix.register_task(name, env_factory="test_custom_tasks:pendulum_with_an_optimum", obs_dim=3, act_dim=1,
+                             episode_length=20, group="pendulums", split=split)
+    model = Vintix(ModelConfig(n_layers=1, n_heads=1, obs_emb_dim=6, act_emb_dim=6, rew_emb_dim=4, mlp_dim=8,
+                               context_len=64), [GroupSpec("pendulums", 3, 1)],
+                   [TaskNorm("pendulum-train", "pendulums", [0.0] * 3, [1.0] * 3)])
+    save_pretrained(model, tmp_path / "model")
+    registry._custom.clear()  # a new process: only the checkpoint knows the tasks
+    agent = Agent.from_pretrained(tmp_path / "model", trust_code=True)
+    runs = evaluate_shots(agent, "pendulum-heldout", shots=1, seeds=2)
+    assert runs.returns.shape == (2, 1) and get_task("pendulum-heldout").split == "test"

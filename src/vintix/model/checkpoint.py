@@ -29,6 +29,7 @@ from vintix.atomic import atomic_save_tensors, atomic_write_text
 from vintix.errors import DeviceError, VintixError, json_loads
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters, estimated_parameters
+from vintix.tasks import list_tasks
 from vintix.tasks.custom import custom_specs, register_specs
 from vintix.tasks.layouts import ObsLayout
 
@@ -60,8 +61,11 @@ def metadata_for(config: ModelConfig, groups: Sequence[GroupSpec], norms: Sequen
         "task_norms": [task_norm_json(t) for t in norms],
         "extra": extra or {},
     }
-    # Tasks registered from outside the package travel with the model, so loading it needs no registration.
-    custom = custom_specs([t.task for t in norms])
+    # Tasks registered from outside the package travel with the model, so loading it needs no registration: its
+    # tasks' and every other task of its groups' (a held-out split of your own that no history was collected on).
+    group_names = {g.name for g in groups}
+    same_groups = [t.name for t in list_tasks() if t.domain == "custom" and t.group in group_names]
+    custom = custom_specs([t.task for t in norms] + same_groups)
     return metadata | ({"custom_tasks": custom} if custom else {})
 
 
