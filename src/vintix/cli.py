@@ -373,7 +373,7 @@ def _collect_rollouts(checkpoint: str, plans: list[CollectionPlan], out: Path | 
     summaries = []
     try:
         for plan in plans:
-            player = ModelRollouts(checkpoint, plan.task)
+            player = ModelRollouts(checkpoint, plan.task, expert=plan.demonstrator)
             # No noise: the model's context must hold the actions it took.
             played = dataclasses.replace(plan, behaviour="expert", schedule=NoiseSchedule(noise_free_fraction=1.0),
                              demonstrator=player.source)

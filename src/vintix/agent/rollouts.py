@@ -27,11 +27,13 @@ ROLLOUTS_SOURCE = "rollouts:"
 
 class ModelRollouts:
     """Plays a model's agent on a batch of envs (the collector's `GoalInferringDemonstrator`): its actions are the
-    history's, and the task's goal-aware expert's are the recorded target. The model and the expert load in the
-    process that plays (`begin`), so the demonstrator travels to collection workers as two names."""
+    history's, and the task's goal-aware expert's are the recorded target: the package's expert, or `expert`, a
+    recipe's ``demonstrator:`` source (your own). The model and the expert load in the process that plays (`begin`),
+    so the demonstrator travels to collection workers as names."""
 
-    def __init__(self, checkpoint: str, task: str, trust_code: bool = False) -> None:
+    def __init__(self, checkpoint: str, task: str, expert: str | None = None, trust_code: bool = False) -> None:
         self.checkpoint, self.task, self.trust_code = str(resolve_checkpoint(checkpoint)), task, trust_code
+        self.expert = expert
         self._agent: Agent | None = None
         self._expert: Demonstrator | None = None
         self._rewards = np.zeros(0)
@@ -45,7 +47,7 @@ class ModelRollouts:
     def begin(self, envs: Sequence[gym.Env], rngs: Sequence[np.random.Generator]) -> None:
         if self._agent is None:
             self._agent = Agent.from_pretrained(self.checkpoint, threads=1, trust_code=self.trust_code)
-            self._expert = load_demonstrator(self.task)
+            self._expert = load_demonstrator(self.task, source=self.expert)
         # The batch's first stream seeds the agent's draws: a history's rollout depends on its batch's seeds only.
         self._agent.seed = int(rngs[0].integers(2**31))
         spaces = [action_space_of(env.action_space) for env in envs]
