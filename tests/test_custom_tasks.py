@@ -229,7 +229,7 @@ def pendulum_with_an_optimum(seed=None):
     return WithOptimum()
 
 
-def test_a_custom_env_that_offers_its_optimum_fills_the_optimal_column(no_custom_tasks):
+def test_a_custom_env_that_offers_its_optimum_fills_the_optimal_column(no_custom_tasks, tmp_path):
     from vintix.agent import Agent
     from vintix.evaluate import evaluate_shots
     from vintix.model import GroupSpec, ModelConfig, TaskNorm, Vintix
@@ -241,6 +241,13 @@ def test_a_custom_env_that_offers_its_optimum_fills_the_optimal_column(no_custom
                                                                                   [1.0] * 3)])
     runs = evaluate_shots(Agent(model), "optimum-pendulum", shots=2, seeds=1)
     np.testing.assert_allclose(runs.scores, runs.returns / -2.5)  # the score is return over the env's optimum
+    from vintix.evaluate import evaluate
+    from vintix.evaluate.config import EvalConfig
+    from vintix.report import write_report
+
+    evaluate(Agent(model), EvalConfig(tasks=["optimum-pendulum"], shots=2, seeds=1), out=tmp_path / "results")
+    write_report([tmp_path / "results"], tmp_path / "report", table="ours")  # scored by the optimum too
+    assert (tmp_path / "report" / "report.md").is_file()
 
 
 def test_a_checkpoint_keeps_its_groups_held_out_task_of_your_own_so_a_new_process_evaluates_it(no_custom_tasks,

@@ -337,19 +337,17 @@ def optimal_return(env: Any) -> float | None:
     return None if optimal is None else float(optimal())
 
 
-def references(tasks: Sequence[str]) -> tuple[dict[str, dict[str, Reference | None]], list[str]]:
-    """Both tables' references of `tasks` (checked before any env runs: expert ≤ random raises),
-    and a note for each task a table lacks."""
-    found = {table: {task: reference(task, table) for task in tasks} for table in ("paper", "ours")}
-    missing = {table: [task for task, ref in refs.items() if ref is None] for table, refs in found.items()}
-    notes = [missing_reference_note(tasks, table) for table, tasks in missing.items() if tasks]
-    return found, notes
+def references(tasks: Sequence[str], rows: Sequence[dict[str, Any]] = ()) -> dict[str, dict[str, Reference | None]]:
+    """Both tables' references of `tasks` (checked before any env runs: expert ≤ random raises); given the `rows` of
+    their runs, a task whose every row carries its env's optimum may score by it (`reference`'s env_optimum)."""
+    optimum = {task: bool(rows) and all(r["optimal"] != "" for r in rows if r["task"] == task) for task in tasks}
+    return {table: {task: reference(task, table, optimum[task]) for task in tasks} for table in ("paper", "ours")}
 
 
-OPTIMAL_REFERENCE = Reference(0.0, 1.0, "the optimal return the env gives for each run's own goal (its "
-                              "optimal_return())", per_goal=True)
-"""The 'ours' reference of a task of your own with no reference scores whose env offers `optimal_return`: a score
-is the return over the optimum, as on the discrete benchmarks."""
+def missing_reference_notes(refs: dict[str, dict[str, Reference | None]]) -> list[str]:
+    """A note for each table that lacks some of the tasks."""
+    missing = {table: [task for task, ref in by_task.items() if ref is None] for table, by_task in refs.items()}
+    return [missing_reference_note(tasks, table) for table, tasks in missing.items() if tasks]
 
 
 def add_normalized_scores(rows: list[dict[str, Any]], refs: dict[str, dict[str, Reference | None]]) -> None:
@@ -410,11 +408,10 @@ def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: st
     if config.ml1 and (others := [spec.name for spec in specs if spec.domain != "metaworld"]):
         raise EvalConfigError(f"ml1: Meta-World's ML1 protocol is for Meta-World tasks, not {', '.join(others)}; "
                               "evaluate those without --ml1")
-    refs, missing = references([s.name for s in specs])
+    references([s.name for s in specs])  # a reference that cannot normalize fails before any env runs
     started = time.time()
     rows = run_episodes(agent, config, specs, progress, ray, checkpoint)
-    refs["ours"] |= {task: OPTIMAL_REFERENCE for task in custom_specs(sorted({row["task"] for row in rows}))
-                     if refs["ours"][task] is None and all(row["optimal"] != "" for row in rows if row["task"] == task)}
+    refs = references([s.name for s in specs], rows)
     add_normalized_scores(rows, refs)
     if out is not None:
         model = agent.model
@@ -430,7 +427,7 @@ def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: st
         } | ({"goal_protocol": ML1_PROTOCOL if config.ml1 else GOAL_PROTOCOL} if any(map(has_hidden_goal, specs))
              else {})
           | ({"custom_tasks": custom} if (custom := custom_specs([s.name for s in specs])) else {}))
-    return rows, notes + missing + no_success_notes(rows)
+    return rows, notes + missing_reference_notes(refs) + no_success_notes(rows)
 
 
 def no_success_notes(rows: Sequence[dict[str, Any]]) -> list[str]:

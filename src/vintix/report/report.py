@@ -112,7 +112,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
             task, variant = row["task"], _variant(row["task"], row["variation"])
             try:
                 if task not in refs:
-                    refs[task] = reference(task, table)
+                    refs[task] = reference(task, table, env_optimum=bool(row.get("optimal")))
                     if refs[task] is None:
                         missing.append(task)
                 ref: Reference | None = refs[task]

@@ -73,6 +73,9 @@ class Reference:
 
 
 OPTIMAL_PROVENANCE = "the optimal return of the run's own hidden goal (vintix.tasks.icrl)"
+ENV_OPTIMUM_REFERENCE = Reference(0.0, 1.0, "the optimal return the env gives for each run's own goal (its "
+                                  "optimal_return())", per_goal=True)
+"""The 'ours' reference of a task of your own with no reference scores whose env offers `optimal_return`."""
 
 
 def check_table(table: str) -> str:
@@ -82,13 +85,15 @@ def check_table(table: str) -> str:
     return table
 
 
-def reference(task: str, table: str = "paper") -> Reference | None:
-    """`task`'s reference in `table` ('paper' or 'ours'); None when the table has no score for it."""
+def reference(task: str, table: str = "paper", env_optimum: bool = False) -> Reference | None:
+    """`task`'s reference in `table` ('paper' or 'ours'); None when the table has no score for it. `env_optimum`: the
+    runs' env gave each goal's optimal return (`optimal_return()`), which scores a task of your own that registered
+    no reference scores in 'ours', as on the discrete benchmarks."""
     check_table(table)
     spec = get_task(task)
     if spec.domain == "custom":  # its own references, whichever table: no table knows it
         if spec.reference_random is None or spec.reference_expert is None:
-            return None
+            return ENV_OPTIMUM_REFERENCE if env_optimum and table == "ours" else None
         return Reference(spec.reference_random, spec.reference_expert, "registered with the task")
     if spec.domain == "icrl":  # no published table: the optimal return of each run's own hidden goal
         return None if table == "paper" else Reference(0.0, 1.0, OPTIMAL_PROVENANCE, per_goal=True)
