@@ -81,9 +81,9 @@ def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_ga
     assert (true.reward_input, zero.reward_input) == ("true", "zero") and true.seeds["reach-v3"] == [0, 1, 2]
     score = converged_gap_with_ci([(true.scores["reach-v3"], zero.scores["reach-v3"])], 2, paired=True,
                                   same_window=True)
-    success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True,
-                                    same_window=True)
     start = best_k_plateau(true.scores["reach-v3"].mean(0), 2)[1]  # the shots the gap averages, printed
+    success = converged_gap_with_ci([(true.success["reach-v3"], zero.success["reach-v3"])], 2, paired=True,
+                                    shots=(start + 1, start + 2))
     cells = (f"| AD | zero | 3, paired by seed | {start + 1}–{start + 2} | "
              f"{score[0]:+.2f} [{score[1]:+.2f}, {score[2]:+.2f}] | "
              f"{100 * success[0]:+.0f} pp [{100 * success[1]:+.0f}, {100 * success[2]:+.0f}] |")
@@ -94,6 +94,27 @@ def test_a_true_and_a_zero_reward_folder_of_one_checkpoint_add_the_reward_use_ga
 
     alone = CliRunner().invoke(app, ["report", str(two_results / "ad-zero"), "--out", str(tmp_path / "alone")])
     assert alone.exit_code == 0 and "no folder of its checkpoint 'runs/ad'" in " ".join(alone.output.split())
+
+
+def test_every_printed_window_is_the_window_computed_for_score_and_success_alike(two_results, tmp_path):
+    """Success counted in every shot of the true run and only in shot 1 of the zero run: the success gap over the
+    printed window (the score's best) is +100 pp; a best window of its own, shots 1-2, made it +50 pp under the score's
+    label."""
+    true, zero = tmp_path / "true", tmp_path / "zero"
+    shutil.copytree(two_results / "ad", true)
+    shutil.copytree(two_results / "ad-zero", zero)
+    edit_rows(lambda rows: [{**r, "success": "1.0"} for r in rows])(true)
+    edit_rows(lambda rows: [{**r, "success": "1.0" if r["shot"] == "1" else "0.0"} for r in rows])(zero)
+    scores, _ = load_results(true, "paper")
+    start = best_k_plateau(scores.scores["reach-v3"].mean(0), 2)[1] + 1
+    if start == 1:  # the score's best window must leave shot 1 out for the two windows to differ
+        edit_rows(lambda rows: [{**r, "return": "-1000"} if r["shot"] == "1" else r for r in rows])(true)
+        start = best_k_plateau(load_results(true, "paper")[0].scores["reach-v3"].mean(0), 2)[1] + 1
+    result = CliRunner().invoke(app, ["report", str(true), str(zero), "--out", str(tmp_path / "report"),
+                                      "--plateau-shots", "2"])
+    assert result.exit_code == 0, result.output
+    line = next(line for line in result.output.splitlines() if line.startswith("reward-use gap"))
+    assert f"+100 pp [+100, +100] success (shots {start}–{start + 1})" in line
 
 
 def test_gap_shots_fix_the_window_of_the_reward_use_gap(two_results, tmp_path):

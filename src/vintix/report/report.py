@@ -297,19 +297,27 @@ def reward_ablations(results: list[Results]) -> tuple[list[tuple[Results, Result
     return pairs, notes
 
 
+def _score_window(first: Results, variants: list[str], k: int) -> tuple[int, int] | None:
+    """The true run's best `k` shots of normalized score (1-based, inclusive), where every variant's is the same
+    window; None where they differ."""
+    starts = {best_k_plateau(first.scores[v].mean(axis=0), k)[1] for v in variants}
+    if len(starts) > 1:
+        return None
+    start, length = starts.pop(), min(k, min(first.scores[v].shape[1] for v in variants))
+    return start + 1, start + length
+
+
 def _window_shots(first: Results, variants: list[str], k: int, same_window: bool,
                   shots: tuple[int, int] | None) -> str:
     """The shots a gap averages, as its table prints them: the fixed window, the true run's best `k` shots (one
     window, or "best k per task" where the tasks' differ), or each model's own best `k`."""
+    if shots is None and same_window:
+        shots = _score_window(first, variants, k)
+        if shots is None:
+            return f"best {k} per task"
     if shots is not None:
         return f"{shots[0]}–{shots[1]}"
-    if not same_window:
-        return f"best {k} of each"
-    starts = {best_k_plateau(first.scores[v].mean(axis=0), k)[1] for v in variants}
-    if len(starts) > 1:
-        return f"best {k} per task"
-    start, length = starts.pop(), min(k, min(first.scores[v].shape[1] for v in variants))
-    return f"{start + 1}–{start + length}"
+    return f"best {k} of each"
 
 
 def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same_window: bool,
@@ -317,7 +325,8 @@ def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same
     """Runs, the shots averaged, and the mean over `variants` of converged(first) − converged(other) with its CI,
     for the normalized score and (where every variant has one) the success rate; `first` is the true-reward
     folder of a reward ablation (`same_window`: the ablated run over the true run's best window), or the
-    first model of a comparison; `shots`: a fixed window of shots instead of the best."""
+    first model of a comparison; `shots`: a fixed window of shots instead of the best. Success is averaged over the
+    score's window where the printed window is one, so the shots printed are the shots of both gaps."""
     paired = all(first.seeds[v] == other.seeds[v] for v in variants)
     if paired:
         runs = f"{sum(len(first.seeds[v]) for v in variants)}, paired by seed"
@@ -326,8 +335,9 @@ def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same
     score = converged_gap_with_ci([(first.scores[v], other.scores[v]) for v in variants], k, paired,
                                   same_window=same_window, shots=shots)
     with_success = all(v in first.success and v in other.success for v in variants)
+    success_shots = shots if shots is not None or not same_window else _score_window(first, variants, k)
     success = (_success_gap(*converged_gap_with_ci([(first.success[v], other.success[v]) for v in variants], k, paired,
-                                                   same_window=same_window, shots=shots))
+                                                   same_window=same_window, shots=success_shots))
                if with_success else "—")
     return [runs, _window_shots(first, variants, k, same_window, shots), _score_gap(*score), success]
 
