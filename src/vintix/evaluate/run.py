@@ -67,6 +67,9 @@ class Episode:
     """Meta-World's success flag (1 if reached at any step); None for envs without one"""
     last_observation: np.ndarray
     """The env's observation after the episode's last step (where it ended: Meta-World's hand at [:3])"""
+    optimal: float | None = None
+    """the most the episode could return under its env's goal (`optimal_return`), read as it ends, so an env that
+    draws its goal at its first reset is asked after it; None for an env that does not say"""
 
 
 def parse_variation(items: Sequence[str]) -> dict[str, float]:
@@ -219,7 +222,8 @@ def play_shots(agent: Agent, envs: Sequence[Any], feeds: Sequence[RewardFeed], s
             if "success" in info:
                 success[i] = max(success[i] or 0.0, float(info["success"]))
             if terminated or truncated:
-                episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i], observation))
+                episodes[i].append(Episode(float(returns[i]), int(lengths[i]), success[i], observation,
+                                           optimal_return(envs[i])))
                 bar.update(1)
                 observation, _ = envs[i].reset()
                 rewards[i], starts[i] = fed, True  # the last reward (`ModelConfig.last_reward`)
@@ -307,7 +311,6 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
         # Each batch is a new run; each env draws from its env seed's own stream: a run does not depend on its batch.
         agent.reset([spec.name for spec, _ in batch], [action_space_of(env.action_space) for env in envs],
                     seeds=[seed for _, seed in batch], discard_context=True)
-        optimal = [optimal_return(env) for env in envs]
         tasks = list(agent.tasks)  # the agent's batch shrinks as runs finish
         if prompts is not None:
             agent.prompt(*([p.rows[key] for p in prompts] for key in ("observation", "action", "reward", "step_num")))
@@ -324,8 +327,8 @@ def run_batch(agent: Agent, config: EvalConfig, batch: list[tuple[TaskSpec, int]
          "variation": variation, "prompt_steps": prompt_steps if config.prompt_from else 0,
          "reward_input": config.reward_input,
          "norm_source": task.norm_source, "shot": shot + 1, "return": e.episode_return, "length": e.length,
-         "success": "" if e.success is None else e.success, "optimal": "" if best is None else best}
-        for (spec, seed), task, episodes, best in zip(batch, tasks, results, optimal, strict=True)
+         "success": "" if e.success is None else e.success, "optimal": "" if e.optimal is None else e.optimal}
+        for (spec, seed), task, episodes in zip(batch, tasks, results, strict=True)
         for shot, e in enumerate(episodes)
     ]
 
