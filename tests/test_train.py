@@ -166,6 +166,12 @@ def test_training_notes_histories_longer_than_a_window_that_an_evaluation_starts
     assert window_sizing_notes(data, 128, keep_first_steps=0, eval_shots=8) == []  # the run outgrows the window
     assert window_sizing_notes(data, 128, keep_first_steps=100, eval_shots=1) == []  # its start is kept
     assert window_sizing_notes(data, 600, keep_first_steps=0, eval_shots=None) == []  # history = window
+    random_contexts = tmp_path / "dpt"  # DPT's contexts of constant noise look alike wherever a window starts
+    collect(CollectionPlan("point-goal-v1", histories=2, steps=60, schedule=NoiseSchedule(level=1.0,
+                                                                                          noise_free_fraction=0.0)),
+            random_contexts)
+    dpt = load_training_data(random_contexts, ["point-goal-v1"], stats_cache_dir=tmp_path)
+    assert window_sizing_notes(dpt, 20, keep_first_steps=0, eval_shots=1) == []
 
 
 def test_resume_below_the_checkpoints_step_is_refused_and_a_moved_max_steps_is_said(metaworld_data, tmp_path, capsys):

@@ -118,7 +118,10 @@ def window_sizing_notes(data: TrainingData, window_len: int, keep_first_steps: i
         lengths = [np.diff(h.bounds) for h in task.histories]
         episode = int(np.median(np.concatenate(lengths))) if any(len(x) for x in lengths) else 1
         fits = window_len // max(episode, 1)
-        if longest > window_len and not keep_first_steps and (eval_shots is None or eval_shots <= fits):
+        # A context of constant noise (DPT's random contexts, `NoiseSchedule.level`) looks alike wherever it starts.
+        constant = all("level" in h.history.attrs for h in task.histories)
+        starts_at_a_run = eval_shots is None or eval_shots <= fits
+        if longest > window_len and not keep_first_steps and not constant and starts_at_a_run:
             shown = f"an evaluation of up to {fits} episodes" if eval_shots is None else \
                 f"the selection's {eval_shots}-episode runs"
             notes.append(f"{task.name}: its histories ({longest:,} steps) are longer than the {window_len:,}-step "
