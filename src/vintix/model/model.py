@@ -123,9 +123,10 @@ class ModelConfig:
     flow_steps: int = 8
     """Euler steps a flow head integrates from noise to an action at play (training draws one time per target)"""
     sample_noise: str = "step"
-    """how often the agent draws a sampling head's noise (a flow's start, a gaussian's z): 'step', a fresh draw every
-    step; 'episode', one draw held for a whole episode, one posterior sample an episode as posterior-sampling RL
-    commits to one hypothesis, instead of dithering between them (no weight depends on it)"""
+    """how often the agent draws a sampling head's noise (a flow's start, a gaussian's z, a categorical's uniform):
+    'step', a fresh draw every step; 'episode', one draw held for a whole episode, one posterior sample an episode as
+    posterior-sampling RL commits to one hypothesis (measured worse on the toy hidden goal: docs/results/dpt); no
+    weight depends on it"""
     reward_encoder: str = "linear"
     """'linear': Linear(1, rew_emb_dim) + activation, as in the official release; 'mlp': two layers, the
     first with biases spread over the reward range, so each unit bends at another reward value"""
