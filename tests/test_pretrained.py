@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -24,6 +26,17 @@ def test_a_shipped_model_is_small_trained_on_its_recipe_and_records_how_it_was_m
     assert set(extra["trained_tasks"]) == suite  # trained on its recipe's train split, nothing held out
     assert np.isfinite(extra["in_context_score"]) and extra["select_reference"] == "ours"
     assert "vintix train" in (folder / "TRAINING.md").read_text()
+
+
+def test_no_shipped_file_names_a_folder_of_the_machine_that_trained_it():
+    root = resolve_checkpoint("vintix-cpu").parent
+    texts = [path for path in root.rglob("*") if path.suffix in (".json", ".md")]
+    assert len(texts) >= 3 * len(shipped_models())
+    # Two or more path components after a slash that starts a word: /work/cells/x, not a URL's //host/x or 1/2.
+    absolute = re.compile(r"(?<![\w.~)\]>/:-])/[A-Za-z_][\w.-]*/[\w.-]+")
+    found = [f"{path.relative_to(root)}: {match.group(0)}" for path in texts
+             for match in absolute.finditer(path.read_text())]
+    assert found == []
 
 
 def test_a_name_means_one_thing_and_unknown_names_list_the_shipped_ones(tmp_path, monkeypatch):

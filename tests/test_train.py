@@ -30,7 +30,8 @@ from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.errors import DatasetError, UnknownTaskError
 from vintix.interrupt import Interrupted
 from vintix.model import CheckpointError, load_pretrained
-from vintix.model.checkpoint import read_metadata
+from vintix.model.checkpoint import WEIGHTS_FILE, read_metadata
+from vintix.model.official import file_sha256
 from vintix.train import (
     ConfigError,
     NonFiniteLossError,
@@ -219,6 +220,12 @@ def test_fine_tuning_starts_from_a_models_weights_with_fresh_groups_for_tasks_it
     resumed = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source / "checkpoints"),
                                   max_steps=2))
     assert resumed.step == 1
+    # What the tuned model records names no folder of this machine, and says which weights it started from.
+    extra = read_metadata(latest_checkpoint(tmp_path / "tuned"))["extra"]
+    assert extra["dataset"] == "../data" and extra["train_config"]["data"] == "../data"
+    assert extra["train_config"]["out"] == "." and extra["train_config"]["init_from"] == "../source"
+    assert extra["init_from_sha256"] == file_sha256(model_directory(source) / WEIGHTS_FILE)
+    assert str(tmp_path) not in (latest_checkpoint(tmp_path / "tuned") / "README.md").read_text()
 
 
 def test_a_checkpoint_from_before_a_model_field_existed_resumes_with_that_fields_default(metaworld_data, tmp_path):

@@ -923,16 +923,19 @@ def train_command(
 
     Many GPUs: torchrun --nproc-per-node N -m vintix train ... (same options)."""
     from vintix.agent import resolve_checkpoint
+    from vintix.agent.pretrained import shipped_name
     from vintix.evaluate import in_context_scorer
     from vintix.train import load_config, train
 
     try:
         train_config = load_config(config, {"data": data and str(data), "out": out and str(out),
                                             "threads": threads}, settings)
+        init_name = None
         if train_config.init_from is not None:  # a shipped model's name is the agent stage's to resolve
-            train_config = dataclasses.replace(train_config,
-                                               init_from=str(resolve_checkpoint(train_config.init_from)))
-        train(train_config, scorer=in_context_scorer(train_config))
+            source = resolve_checkpoint(train_config.init_from)
+            init_name = shipped_name(source)
+            train_config = dataclasses.replace(train_config, init_from=str(source))
+        train(train_config, scorer=in_context_scorer(train_config), init_name=init_name)
     except VintixError as error:
         raise _fail(error) from None
 

@@ -56,12 +56,17 @@ def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
                           f"(shipped: {', '.join(shipped_models()) or 'none'})")
 
 
+def shipped_name(resolved: Path) -> str | None:
+    """The name of the shipped model whose folder `resolved` (`resolve_checkpoint`'s answer) is, else None."""
+    return resolved.name if resolved.parent == _shipped_root() else None
+
+
 def checkpoint_name(given: str | os.PathLike[str], resolved: Path) -> str:
     """How results name the checkpoint they came from, without this machine's absolute paths where that
     can be helped: a shipped model by its name, an imported release snapshot by the folder given, a
     checkpoint under the working directory relative to it, any other by its path."""
-    if resolved.parent == _shipped_root():
-        return resolved.name
+    if (name := shipped_name(resolved)) is not None:
+        return name
     if is_official_snapshot(Path(given)):
         return str(given)
     try:

@@ -271,6 +271,33 @@ def check_resumable(directory: Path, config: ModelConfig, groups: list[GroupSpec
     return meta
 
 
+def run_relative(path: str | os.PathLike[str], out: str | os.PathLike[str]) -> str:
+    """`path` as seen from the run folder `out`."""
+    return os.path.relpath(os.path.abspath(path), os.path.abspath(out))
+
+
+RUN_PATH_FIELDS = ("data", "stats_cache_dir", "init_from")
+"""TrainConfig fields that name a file or folder"""
+
+
+def portable_record(extra: dict[str, Any], init_name: str | None = None) -> dict[str, Any]:
+    """What a saved model records about its training (``extra``, holding ``dataset`` and ``train_config``) with every
+    path relative to the run folder (``out`` itself becomes "."), and ``init_from`` the shipped model's name where
+    `init_name` gives it: a model that is shared or shipped names no folder of the machine that trained it, and
+    a run moved with its data still points at it. A record already relative is returned as it is."""
+    config = extra.get("train_config")
+    if not isinstance(config, dict) or config.get("out") in (None, "."):
+        return extra
+    out = config["out"]
+    recorded = {field: run_relative(config[field], out) for field in RUN_PATH_FIELDS if config.get(field) is not None}
+    if init_name is not None:
+        recorded["init_from"] = init_name
+    portable = dict(extra, train_config={**config, **recorded, "out": "."})
+    if extra.get("dataset") is not None:
+        portable["dataset"] = run_relative(extra["dataset"], out)
+    return portable
+
+
 def resume_changes(meta: dict[str, Any], config: dict[str, Any], dataset_fingerprint: str,
                    free: Iterable[str]) -> list[str]:
     """How a run resumed with `config` (a TrainConfig as a dict) on data of `dataset_fingerprint` differs

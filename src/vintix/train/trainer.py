@@ -32,8 +32,9 @@ from vintix.atomic import atomic_write_text, check_output_kind, folder_lock
 from vintix.errors import DeviceError, VintixError
 from vintix.interrupt import Interrupted, StopRequest, stop_requests
 from vintix.memory import build_within_memory
-from vintix.model.checkpoint import CheckpointError, load_pretrained
+from vintix.model.checkpoint import WEIGHTS_FILE, CheckpointError, load_pretrained
 from vintix.model.model import Vintix, count_parameters, estimated_parameters
+from vintix.model.official import file_sha256
 from vintix.tasks import select_tasks
 from vintix.train.checkpoint import (
     best_checkpoint_dir,
@@ -43,6 +44,7 @@ from vintix.train.checkpoint import (
     latest_checkpoint,
     load_optimizer,
     model_directory,
+    portable_record,
     prune_checkpoints,
     read_rng,
     read_training_state,
@@ -426,13 +428,17 @@ class Trainer:
     """
 
     def __init__(self, config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (),
-                 scorer: Scorer | None = None) -> None:
+                 scorer: Scorer | None = None, init_name: str | None = None) -> None:
         if config.select_every and scorer is None:
             raise ConfigError("select_every needs an in-context scorer: train with `vintix train`, or pass "
                               "scorer=vintix.evaluate.in_context_scorer(config)")
         self.config = config
         self.callbacks = list(callbacks)
         self.scorer = scorer
+        self.init_name = init_name
+        """the shipped model's name that `config.init_from` (its folder) was given as, which saved models record"""
+        self.init_sha256: str | None = None
+        """the sha256 of the weights it started from: a path alone says nothing once they change"""
         self.out = Path(config.out)
         self.dist, self.device = init_distributed(config.device)
         torch.set_num_threads(training_threads(config.threads, self.dist.world_size))
@@ -458,10 +464,12 @@ class Trainer:
                     "with --set allow_resume_changes=true"
                 )
             self._check_max_steps(meta.get("extra", {}), resume)
+            self.init_sha256 = meta.get("extra", {}).get("init_from_sha256")
             # The checkpoint's normalization statistics, not today's, are the ones the weights learned with.
             self.model = load_pretrained(resume)
         elif config.init_from is not None:
             fresh = start_from_pretrained(self.model, config.init_from)
+            self.init_sha256 = file_sha256(model_directory(config.init_from) / WEIGHTS_FILE)
             if self.dist.is_main:
                 print(f"starting from {config.init_from}'s weights; fresh: "
                       + (", ".join(f"group {name}" for name in fresh) or "nothing"))
@@ -572,9 +580,13 @@ class Trainer:
 
     def _model_extra(self) -> dict[str, object]:
         """What a saved model records about its training."""
-        return {"step": self.step, "tokens": self.tokens, "dataset": str(self.data.root),
-                "dataset_fingerprint": self.data.fingerprint, "trained_tasks": [t.name for t in self.data.tasks],
-                "train_config": dataclasses.asdict(self.config)}
+        extra: dict[str, object] = {
+            "step": self.step, "tokens": self.tokens, "dataset": str(self.data.root),
+            "dataset_fingerprint": self.data.fingerprint, "trained_tasks": [t.name for t in self.data.tasks],
+            "train_config": dataclasses.asdict(self.config)}
+        if self.init_sha256 is not None:
+            extra["init_from_sha256"] = self.init_sha256
+        return portable_record(extra, self.init_name)
 
     def _select(self) -> Selection:
         """Score the model in context (rank 0 only); keep it as ``checkpoints/best`` if its score beats the best."""
@@ -731,14 +743,16 @@ class Trainer:
             self.model.train()
 
 
-def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (), scorer: Scorer | None = None) -> Path:
+def train(config: TrainConfig, callbacks: Sequence[tuple[int, Callback]] = (), scorer: Scorer | None = None,
+          init_name: str | None = None) -> Path:
     """Run (or resume) a whole training run; under ``torchrun`` every rank calls this (rank 0 holds the
-    run folder, so a second training into it fails at once)."""
+    run folder, so a second training into it fails at once). `init_name`: the shipped model's name where
+    ``config.init_from`` is its folder (`Trainer`)."""
     main_rank = int(os.environ.get("RANK", "0")) == 0
     check_output_kind(config.out, "run")
     try:
         with folder_lock(config.out, "vintix train") if main_rank else contextlib.nullcontext():
-            return Trainer(config, callbacks, scorer).run()
+            return Trainer(config, callbacks, scorer, init_name).run()
     finally:
         if dist.is_initialized():
             dist.destroy_process_group()
