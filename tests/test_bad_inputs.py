@@ -546,7 +546,7 @@ for option, value, needle in [("--envs-per-batch", "0", "envs_per_batch=0"), ("-
 cli_error("collect", "unknown recipe", lambda: ["collect", "--recipe", "nosuch", "--out", WORK / "c7"],
           "no recipe file")
 cli_error("collect", "recipe: invalid YAML", lambda: ["collect", "--recipe", file_at("bad.yaml", "tasks: [a, : b")(),
-                                                      "--out", WORK / "c8"], "not a YAML recipe")
+                                                      "--out", WORK / "c8"], "not valid YAML")
 for name, recipe, needle in [
     ("unknown setting", "tasks:\n  reach-v3: {stpes: 100}\n", "unknown setting"),
     ("steps is text", "tasks:\n  reach-v3: {histories: 1, steps: many}\n", "steps must be int"),

@@ -88,7 +88,7 @@ def test_unknown_setting_and_unknown_recipe_are_clear_errors(tmp_path):
     ("defaults: {histories: 1}\ntasks:\n  reach-v3: {steps: many}\n", "CollectionPlan.steps must be int, got 'many'"),
     ("tasks:\n  reach-v3: {histories: 1, steps: 10, curvature: steep}\n", "NoiseSchedule.curvature must be float"),
     ("tasks:\n  reach-v3: 5\n", "must be mappings"),
-    ("tasks: [reach-v3, : x\n", "not a YAML recipe"),
+    ("tasks: [reach-v3, : x\n", "not valid YAML"),
 ])
 def test_a_recipe_with_missing_or_mistyped_settings_names_them(tmp_path, text, message):
     path = tmp_path / "r.yaml"

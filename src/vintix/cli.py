@@ -319,6 +319,8 @@ def collect(
         help="index of the first history to collect, e.g. the next free one of a folder that a round of "
              "--rollouts-of joins (default: the recipe's, else 0)")] = None,
     threads: ThreadsOption = None,
+    print_config: Annotated[bool, typer.Option(
+        "--print-config", help="print the recipe with its base: resolved (the whole it collects), then stop")] = False,
 ) -> None:
     """Collect noise-distilled learning histories (paper Algorithm 1). Re-running finishes only what is missing."""
     _use_threads(threads)
@@ -326,9 +328,13 @@ def collect(
 
     from vintix.collect import CollectionPlan, NoiseSchedule, check_demonstrators
     from vintix.collect import collect as collect_histories
-    from vintix.collect.recipe import load_recipe
+    from vintix.collect.recipe import load_recipe, resolved_recipe
 
     try:
+        if print_config:
+            if recipe is None:
+                raise VintixError("--print-config shows a recipe: give --recipe")
+            return _print_yaml(resolved_recipe(recipe))
         if recipe is not None and task is None:
             plans = load_recipe(recipe)
         elif task is not None and recipe is None:
@@ -906,6 +912,13 @@ def data_fit_schedule(
         print("\n".join(f"  {f.task}: {{knots: [{', '.join(f'{k:g}' for k in f.knots)}]}}" for f in fitted))
 
 
+def _print_yaml(settings: dict[str, Any]) -> None:
+    """Settings as YAML a recipe or config file could hold (plain print: no rich markup or wrapping)."""
+    import yaml
+
+    print(yaml.safe_dump(settings, sort_keys=False, width=120), end="")
+
+
 @app.command("train")
 def train_command(
     config: Annotated[str, typer.Option(
@@ -918,6 +931,9 @@ def train_command(
     threads: Annotated[int | None, typer.Option(
         min=0, max=MAX_THREADS, help="torch CPU threads per training process (0: the cores other work leaves "
         "idle now; default: the config's threads, which is 0 unless it says otherwise)")] = None,
+    print_config: Annotated[bool, typer.Option(
+        "--print-config", help="print every TrainConfig field as this command would train with it (the config's "
+        "base: resolved, then --data, --out and --set), then stop")] = False,
 ) -> None:
     """Train (or resume) a model by Algorithm Distillation.
 
@@ -930,6 +946,8 @@ def train_command(
     try:
         train_config = load_config(config, {"data": data and str(data), "out": out and str(out),
                                             "threads": threads}, settings)
+        if print_config:
+            return _print_yaml(dataclasses.asdict(train_config))
         init_name = None
         if train_config.init_from is not None:  # a shipped model's name is the agent stage's to resolve
             source = resolve_checkpoint(train_config.init_from)

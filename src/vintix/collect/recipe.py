@@ -12,6 +12,9 @@
       handle-pull-v3: {pilot_steps: 30000}   # knots fitted per history to a pilot on its own goal
       metaworld: {}      # a domain or split name expands to all its tasks
 
+A recipe may build on another (`vintix.configfiles`): ``base: darkroom-search`` and only what differs (``defaults:``
+and ``tasks:`` merge key by key, so a task added, or one setting of a task changed, is one line).
+
 Shipped recipes (`vintix collect --recipe NAME`): see `src/vintix/collect/recipes/`.
 """
 
@@ -22,10 +25,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from vintix.collect.collector import CollectionError, CollectionPlan
 from vintix.collect.noise import NoiseSchedule
+from vintix.configfiles import read_layered
 from vintix.errors import local_or_shipped
 from vintix.tasks import resolve_tasks
 
@@ -39,13 +41,19 @@ def shipped_recipes() -> list[str]:
                   if p.name.endswith(".yaml"))
 
 
+def shipped_recipe(name: str) -> Path | None:
+    """The file of the recipe the package ships as `name`, or None."""
+    shipped = resources.files("vintix.collect").joinpath("recipes").joinpath(f"{name}.yaml")
+    return Path(str(shipped)) if shipped.is_file() else None
+
+
 def recipe_path(name_or_path: str | Path) -> Path:
     """A recipe file, or the name of one the package ships ('tiny', 'metaworld-cpu', ...); a bare name that is both
     is refused (`vintix.errors.local_or_shipped`)."""
     path = Path(name_or_path)
-    shipped = resources.files("vintix.collect").joinpath("recipes").joinpath(f"{name_or_path}.yaml")
-    if not local_or_shipped(name_or_path, shipped.is_file(), "recipe"):
-        return Path(str(shipped))
+    shipped = shipped_recipe(str(name_or_path))
+    if shipped is not None and not local_or_shipped(name_or_path, True, "recipe"):
+        return shipped
     if path.is_file():
         return path
     raise FileNotFoundError(
@@ -67,14 +75,17 @@ def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
         raise CollectionError(f"{where}: {error}") from error
 
 
+def resolved_recipe(name_or_path: str | Path) -> dict[str, Any]:
+    """A recipe's settings with its base's underneath (`vintix.configfiles`): what `vintix collect --print-config`
+    shows."""
+    return read_layered(recipe_path(name_or_path), shipped_recipe, CollectionError, "recipe")
+
+
 def load_recipe(name_or_path: str | Path) -> list[CollectionPlan]:
     """The collection plans of a recipe, one per task, task settings overriding the defaults."""
     path = recipe_path(name_or_path)
-    try:
-        recipe = yaml.safe_load(path.read_text()) or {}
-    except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise CollectionError(f"{path}: not a YAML recipe ({error})") from error
-    if not isinstance(recipe, dict) or not isinstance(recipe.get("tasks"), dict) or not recipe["tasks"]:
+    recipe = resolved_recipe(path)
+    if not isinstance(recipe.get("tasks"), dict) or not recipe["tasks"]:
         raise CollectionError(f"{path}: a recipe needs a non-empty 'tasks:' mapping (and optionally 'defaults:')")
     defaults = recipe.get("defaults") or {}
     if not isinstance(defaults, dict) or not all(isinstance(v, dict) or v is None for v in recipe["tasks"].values()):

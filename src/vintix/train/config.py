@@ -1,7 +1,8 @@
 """The training configuration: one dataclass, every field documented (CleanRL style).
 
 ``--config`` takes a model preset name (``tiny``, ``small``, ``paper``: the defaults below with that
-model) or a YAML file of TrainConfig fields; ``--set field=value`` overrides single fields.
+model) or a YAML file of TrainConfig fields, which may build on another (``base:``, `vintix.configfiles`);
+``--set field=value`` overrides single fields.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from vintix.configfiles import read_layered
 from vintix.errors import VintixError, local_or_shipped
 from vintix.fields import MAX_THREADS, check_field_types
 from vintix.model.model import PRESETS, ModelConfig, preset
@@ -241,6 +243,12 @@ def shipped_configs() -> list[str]:
                   if p.name.endswith(".yaml"))
 
 
+def shipped_config(name: str) -> Path | None:
+    """The file of the training config the package ships as `name`, or None."""
+    shipped = resources.files("vintix.train").joinpath("configs").joinpath(f"{name}.yaml")
+    return Path(str(shipped)) if shipped.is_file() else None
+
+
 def load_config(config: str, overrides: dict[str, Any] | None = None, settings: list[str] | None = None) -> TrainConfig:
     """A TrainConfig from a preset name, a shipped config's name or a YAML file, then ``overrides`` (e.g.
     --data/--out), then ``settings`` (``"field=value"`` strings, values parsed as YAML)."""
@@ -248,18 +256,13 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
         fields: dict[str, Any] = {"model": config}
     else:
         path = Path(config)
-        shipped = Path(str(resources.files("vintix.train").joinpath("configs").joinpath(f"{config}.yaml")))
-        if not local_or_shipped(config, shipped.is_file(), "training config"):
+        shipped = shipped_config(config)
+        if shipped is not None and not local_or_shipped(config, True, "training config"):
             path = shipped
         elif not path.is_file():
             raise ConfigError(f"--config {config!r} is neither a model preset ({', '.join(PRESETS)}), a shipped config "
                               f"({', '.join(shipped_configs())}) nor a YAML file")
-        try:
-            fields = yaml.safe_load(path.read_text()) or {}
-        except yaml.YAMLError as error:
-            raise ConfigError(f"{path}: not valid YAML ({error})") from error
-        if not isinstance(fields, dict):
-            raise ConfigError(f"{path}: expected a mapping of TrainConfig fields")
+        fields = read_layered(path, shipped_config, ConfigError, "training config")
     given = {k: v for k, v in (overrides or {}).items() if v is not None}
     fields.update(given)
     settings_given = dict(_parse_override(item) for item in settings or [])
