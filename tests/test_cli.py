@@ -323,3 +323,32 @@ def test_collect_and_demonstrator_take_threads(tmp_path, command):
         assert torch.get_num_threads() == 1
     finally:
         torch.set_num_threads(before)
+
+
+OPTIONS_OF_FIELDS = [
+    ("eval", "EvalConfig", ["tasks", "shots", "seeds", "first_seed", "ml1", "variation", "prompt_from",
+                            "prompt_steps", "batch_envs", "reward_input", "greedy", "sample_noise"]),
+    ("train", "TrainConfig", ["data", "out", "threads"]),
+    ("collect", "CollectionPlan", ["histories", "steps", "seed", "envs_per_batch", "first_history"]),
+    ("collect", "NoiseSchedule", ["curvature", "noise_free_fraction", "pilot_steps"]),
+    ("demonstrator histories", "CollectionPlan", ["probe_margin", "aim", "lapse_probability", "reward_tolerance"]),
+]
+"""(command, the dataclass whose fields some of its options set, those options). demonstrator histories'
+--behaviour is not CollectionPlan.behaviour: it takes only the behaviours that never see the goal."""
+
+
+@pytest.mark.parametrize(("command", "config", "options"), OPTIONS_OF_FIELDS)
+def test_an_options_help_is_its_config_fields_docstring(command, config, options):
+    import typer
+
+    from vintix.cli import CONFIG_MODULES
+    from vintix.fields import field_docs
+
+    docs = field_docs(CONFIG_MODULES[config], config)
+    found = typer.main.get_command(app)
+    for name in command.split():
+        found = found.commands[name]  # type: ignore[attr-defined]
+    helps = {param.name: getattr(param, "help", None) for param in found.params}
+    assert {option: helps.get(option) for option in options} == {option: docs[option] for option in options}
+    result = CliRunner().invoke(app, [*command.split(), "--help"], env={"COLUMNS": "2000"})
+    assert docs[options[0]] in " ".join(result.output.split())  # shown as it is written

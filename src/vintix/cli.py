@@ -27,11 +27,10 @@ from vintix.evaluate.config import (
     ML1_ADAPTATION_SHOTS,
     ML1_SCORED_SHOTS,
     ML1_SHOTS,
-    ML1_TEST_GOALS,
     PLATEAU_SHOTS,
     EvalConfig,
 )
-from vintix.fields import MAX_THREADS
+from vintix.fields import MAX_THREADS, field_help
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
@@ -100,6 +99,16 @@ app.add_typer(bench_app, name="bench")
 # The backslash keeps typer's rich help from reading "[cluster]" as markup and dropping it.
 _RAY_HELP = ("spread the work over a Ray cluster: 'auto' (the running one, else a local instance) or its address, "
              "e.g. host:6379 or ray://host:10001; needs pip install 'vintix\\[cluster]'")
+CONFIG_MODULES = {"EvalConfig": "vintix.evaluate.config", "TrainConfig": "vintix.train.config",
+                  "CollectionPlan": "vintix.collect.collector", "NoiseSchedule": "vintix.collect.noise"}
+"""The settings dataclasses whose fields are also command-line options, and where each is defined."""
+
+
+def _doc(config: str, field: str) -> str:
+    """The help of the option for `field` of the dataclass `config`: that field's docstring, written once."""
+    return field_help(CONFIG_MODULES[config], config, field)
+
+
 ThreadsOption = Annotated[int | None, typer.Option(
     min=1, max=MAX_THREADS, help="torch CPU threads of this process (default: torch's, one per core; 1 leaves the "
     "other cores to other work)")]
@@ -296,15 +305,14 @@ def collect(
     task: Annotated[str | None, typer.Option(help="one task (or use --recipe)")] = None,
     recipe: Annotated[str | None, typer.Option(
         help=f"a recipe YAML file, or a shipped one: {', '.join(_shipped_recipes())}")] = None,
-    histories: Annotated[int, typer.Option(help="learning histories for --task")] = 1,
-    steps: Annotated[int, typer.Option(help="steps per history for --task")] = 10_000,
-    curvature: Annotated[float, typer.Option(help="noise schedule curvature p for --task")] = 1.0,
-    noise_free_fraction: Annotated[float | None, typer.Option(
-        help="noise-free tail fraction f for --task (default: the noise schedule's, 0.05)")] = None,
-    pilot_steps: Annotated[int, typer.Option(help="for --task: fit each history's knots to a pilot run of this many "
-                                             "steps on its own env first (0: none; see NoiseSchedule)")] = 0,
-    envs_per_batch: Annotated[int, typer.Option(help="histories stepped together in one process")] = 16,
-    seed: int = 0,
+    histories: Annotated[int, typer.Option(help=_doc("CollectionPlan", "histories"))] = 1,
+    steps: Annotated[int, typer.Option(help=_doc("CollectionPlan", "steps"))] = 10_000,
+    curvature: Annotated[float, typer.Option(help=_doc("NoiseSchedule", "curvature"))] = 1.0,
+    noise_free_fraction: Annotated[float | None, typer.Option(help=_doc("NoiseSchedule", "noise_free_fraction"))
+                                   ] = None,
+    pilot_steps: Annotated[int, typer.Option(help=_doc("NoiseSchedule", "pilot_steps"))] = 0,
+    envs_per_batch: Annotated[int, typer.Option(help=_doc("CollectionPlan", "envs_per_batch"))] = 16,
+    seed: Annotated[int, typer.Option(help=_doc("CollectionPlan", "seed"))] = 0,
     workers: Annotated[int, typer.Option(help="processes (one per core)")] = 1,
     ray: Annotated[str | None, typer.Option(help=_RAY_HELP)] = None,
     plan: Annotated[bool, typer.Option("--plan", help="print what would be collected, its size on disk and the wall "
@@ -315,9 +323,7 @@ def collect(
         help="the model (checkpoint, run folder or shipped name) plays the histories, sampled and without noise, and "
              "each row records the goal-aware expert's action as its target: DPT's DAgger round "
              "(vintix.agent.rollouts)")] = None,
-    first_history: Annotated[int | None, typer.Option(
-        help="index of the first history to collect, e.g. the next free one of a folder that a round of "
-             "--rollouts-of joins (default: the recipe's, else 0)")] = None,
+    first_history: Annotated[int | None, typer.Option(help=_doc("CollectionPlan", "first_history"))] = None,
     threads: ThreadsOption = None,
     print_config: Annotated[bool, typer.Option(
         "--print-config", help="print the recipe with its base: resolved (the whole it collects), then stop")] = False,
@@ -605,16 +611,10 @@ def demonstrator_histories(
     seeds: Annotated[int, typer.Option(min=1, help="histories, env seeds first-seed, first-seed + 1, ...")] = 20,
     first_seed: Annotated[int, typer.Option(min=0)] = 100,
     episodes: Annotated[int, typer.Option(min=1, help="episodes per history")] = 8,
-    probe_margin: Annotated[float, typer.Option(
-        help="how far outside the goal box the probed corners lie (probing, probe-then-sample)")] = 0.0,
-    aim: Annotated[str, typer.Option(help="what the expert puts on the goal: hand, or gripper-centre (reach tasks)")]
-        = "hand",
-    lapse_probability: Annotated[float, typer.Option(
-        help="probe-then-sample: the chance that an episode after the first aimed one is a lapse (aimed at a prior "
-             "draw, or its object mishandled)")] = 0.0,
-    reward_tolerance: Annotated[float, typer.Option(
-        min=0.0, help="the std of the reward likelihood, how far aimed episodes miss while they close in (0: the "
-                      "behaviour's default)")] = 0.0,
+    probe_margin: Annotated[float, typer.Option(help=_doc("CollectionPlan", "probe_margin"))] = 0.0,
+    aim: Annotated[str, typer.Option(help=_doc("CollectionPlan", "aim"))] = "hand",
+    lapse_probability: Annotated[float, typer.Option(help=_doc("CollectionPlan", "lapse_probability"))] = 0.0,
+    reward_tolerance: Annotated[float, typer.Option(min=0.0, help=_doc("CollectionPlan", "reward_tolerance"))] = 0.0,
     demonstrator_source: Annotated[str | None, typer.Option(
         "--demonstrator", metavar="MODULE:CALLABLE", help="your own reward-reading demonstrator (called with the task "
         "name, as a recipe's demonstrator: is), for a task of your own; the behaviour options are then unused")] = None,
@@ -923,14 +923,12 @@ def _print_yaml(settings: dict[str, Any]) -> None:
 def train_command(
     config: Annotated[str, typer.Option(
         help="model preset (tiny, small, paper) or a YAML file of TrainConfig fields")] = "tiny",
-    data: Annotated[Path | None, typer.Option(help="dataset root (overrides the config)")] = None,
-    out: Annotated[Path | None, typer.Option(help="run directory; re-running the same command resumes")] = None,
+    data: Annotated[Path | None, typer.Option(help=_doc("TrainConfig", "data"))] = None,
+    out: Annotated[Path | None, typer.Option(help=_doc("TrainConfig", "out"))] = None,
     settings: Annotated[list[str] | None, typer.Option(
         "--set", metavar="FIELD=VALUE",
         help="override one TrainConfig field (repeatable), e.g. --set max_steps=500")] = None,
-    threads: Annotated[int | None, typer.Option(
-        min=0, max=MAX_THREADS, help="torch CPU threads per training process (0: the cores other work leaves "
-        "idle now; default: the config's threads, which is 0 unless it says otherwise)")] = None,
+    threads: Annotated[int | None, typer.Option(min=0, max=MAX_THREADS, help=_doc("TrainConfig", "threads"))] = None,
     print_config: Annotated[bool, typer.Option(
         "--print-config", help="print every TrainConfig field as this command would train with it (the config's "
         "base: resolved, then --data, --out and --set), then stop")] = False,
@@ -1151,40 +1149,25 @@ def eval_command(
     checkpoint: Annotated[str, typer.Option(help="a checkpoint directory (config.json + model.safetensors), a "
                                              "training run (its best checkpoint, else its newest), a shipped model "
                                              "(cpu-suite, icrl-reach, point-goal) or a release snapshot")],
-    tasks: Annotated[list[str], typer.Option(
-        help="task names, domains or splits (train/test); repeat or comma-separate")],
+    tasks: Annotated[list[str], typer.Option(help=_doc("EvalConfig", "tasks"))],
     out: Annotated[Path, typer.Option(help="folder for episodes.csv and run.json")] = Path("results"),
-    shots: Annotated[int | None, typer.Option(
-        help=f"episodes per run [default: {EvalConfig.shots}; {ML1_SHOTS} with --ml1]", show_default=False)] = None,
-    seeds: Annotated[int, typer.Option(help="runs per task (Meta-World: one hidden goal each)")] = EvalConfig.seeds,
-    first_seed: Annotated[int, typer.Option(help="env seed of the first run (--ml1: its ML1 test goal)")
-                          ] = EvalConfig.first_seed,
-    ml1: Annotated[bool, typer.Option(
-        "--ml1", help=f"Meta-World's ML1 meta-test protocol: run i plays ML1's test goal first-seed + i (of "
-        f"{ML1_TEST_GOALS}), {ML1_ADAPTATION_SHOTS} adaptation episodes then {ML1_SCORED_SHOTS} scored, success at "
-        "any step; Meta-World tasks only")] = EvalConfig.ml1,
-    variation: Annotated[list[str] | None, typer.Option(
-        help="MuJoCo physics variation NAME=VALUE, e.g. viscosity=0.05")] = None,
-    prompt_from: Annotated[Path | None, typer.Option(
-        help="dataset root: prompt with the start of a stored history")] = None,
-    prompt_steps: Annotated[int | None, typer.Option(help="prompt length (default: half the window)")] = None,
+    shots: Annotated[int | None, typer.Option(help=_doc("EvalConfig", "shots"), show_default=False)] = None,
+    seeds: Annotated[int, typer.Option(help=_doc("EvalConfig", "seeds"))] = EvalConfig.seeds,
+    first_seed: Annotated[int, typer.Option(help=_doc("EvalConfig", "first_seed"))] = EvalConfig.first_seed,
+    ml1: Annotated[bool, typer.Option("--ml1", help=_doc("EvalConfig", "ml1"))] = EvalConfig.ml1,
+    variation: Annotated[list[str] | None, typer.Option(help=_doc("EvalConfig", "variation"))] = None,
+    prompt_from: Annotated[Path | None, typer.Option(help=_doc("EvalConfig", "prompt_from"))] = None,
+    prompt_steps: Annotated[int | None, typer.Option(help=_doc("EvalConfig", "prompt_steps"))] = None,
     reference: Annotated[str, typer.Option(
         help="reference table of the printed summary: ours (our measured demonstrators and random policy; every "
              "task has it) or paper (the paper's table; what comparisons with its numbers need)")] = "ours",
     label: Annotated[str | None, typer.Option(
         help="name of this model in reports (default: checkpoint folder)")] = None,
-    batch_envs: Annotated[int, typer.Option(help="most envs stepped together")] = EvalConfig.batch_envs,
-    reward_input: Annotated[str, typer.Option(
-        metavar="true|zero|shuffled|other-goal", help="rewards fed back to the model: the env's (true), zeros, the "
-        "episode's own in random order (shuffled), or what each step would have earned under another seed's hidden "
-        "goal (other-goal), to measure how much the rewards drive the in-context gains; scores and success are "
-        "always computed from the true returns")] = EvalConfig.reward_input,
-    greedy: Annotated[bool, typer.Option(
-        "--greedy", help="discrete tasks: act on the argmax of the model's logits (a gaussian policy: its mean) "
-        "instead of a draw; by default the policy samples, as AD and DPT are evaluated")] = EvalConfig.greedy,
-    sample_noise: Annotated[str | None, typer.Option(
-        help="a sampling head's draws: 'step' (a fresh one every step) or 'episode' (one held for each episode, one "
-             "posterior sample an episode); default: the model's own setting")] = None,
+    batch_envs: Annotated[int, typer.Option(help=_doc("EvalConfig", "batch_envs"))] = EvalConfig.batch_envs,
+    reward_input: Annotated[str, typer.Option(metavar="true|zero|shuffled|other-goal",
+                                              help=_doc("EvalConfig", "reward_input"))] = EvalConfig.reward_input,
+    greedy: Annotated[bool, typer.Option("--greedy", help=_doc("EvalConfig", "greedy"))] = EvalConfig.greedy,
+    sample_noise: Annotated[str | None, typer.Option(help=_doc("EvalConfig", "sample_noise"))] = None,
     device: str = "cpu",
     threads: Annotated[int, typer.Option(min=1, max=MAX_THREADS, help="torch CPU threads; 1 suits small models, whose "
                                          "steps are many tiny ops that a second thread slows down on a busy "

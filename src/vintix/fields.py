@@ -8,7 +8,10 @@ str is meant).
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import functools
+import itertools
 import math
 import os
 import types
@@ -97,3 +100,29 @@ def check_threads(threads: object, what: str = "threads") -> int:
     if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
         raise ValueError(f"{what} must be a whole number of CPU threads from 1 to {MAX_THREADS}, got {threads!r}")
     return threads
+
+
+@functools.cache
+def field_docs(module: str, cls: str) -> dict[str, str]:
+    """The docstring under each field of the dataclass `cls` of `module` (``"vintix.train.config"``), each on one
+    line: the one text that documents a setting, in the code and as its command-line option's help. Read from the
+    module's source, not by importing it, so that ``vintix --help`` imports none of the stages."""
+    path = Path(__file__).parent.joinpath(*module.split(".")[1:]).with_suffix(".py")
+    tree = ast.parse(path.read_text(), str(path))
+    found = next((node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == cls), None)
+    if found is None:
+        raise LookupError(f"{path} has no class {cls}")
+    docs = {}
+    for field, after in itertools.pairwise(found.body):
+        if (isinstance(field, ast.AnnAssign) and isinstance(field.target, ast.Name) and isinstance(after, ast.Expr)
+                and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)):
+            docs[field.target.id] = " ".join(after.value.value.split())
+    return docs
+
+
+def field_help(module: str, cls: str, field: str) -> str:
+    """`field`'s docstring (`field_docs`): a command-line option's help for that field."""
+    docs = field_docs(module, cls)
+    if field not in docs:
+        raise LookupError(f"{module}.{cls}.{field} has no docstring to serve as its option's help")
+    return docs[field]

@@ -27,7 +27,7 @@ class NoiseSchedule:
     """p: > 1 keeps ε high for longer, then drops it (for returns that rise early); < 1 the opposite."""
     noise_free_fraction: float = 0.05
     """f: the fraction of the history, at its end, played by the demonstrator alone (1: all of it,
-    expert data for the expert-distillation baseline); one default for Python, the CLI and recipes."""
+    expert data for the expert-distillation baseline); 0.05 unless given, in Python, the CLI and recipes alike."""
     knots: tuple[float, ...] = ()
     """ε at evenly spaced points of the noised part of the history, falling to 0 from 1 (or from less,
     so that its noisiest episodes still act), instead of the curvature (`fit_knots` places them so the

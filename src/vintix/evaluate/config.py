@@ -38,16 +38,17 @@ class EvalConfig:
     """What `vintix eval` runs."""
 
     tasks: list[str] = field(default_factory=lambda: ["reach-v3"])
-    """task names, domains or splits ('train', 'test'); domains and splits keep the tasks whose group
-    the checkpoint has"""
+    """task names, domains or splits ('train', 'test'), repeated or comma-separated; domains and splits keep the
+    tasks whose group the checkpoint has"""
     shots: int = 50
-    """episodes per run"""
+    """episodes per run: 50, or with ml1 ML1's 13 unless given"""
     seeds: int = 3
     """runs per task; run i's env is seeded first_seed + i (Meta-World: its own hidden goal)"""
     first_seed: int = 0
-    """env seed of the first run"""
+    """env seed of the first run (with ml1: the index of its ML1 test goal)"""
     variation: dict[str, float] = field(default_factory=dict)
-    """physics variation of every env, e.g. {'viscosity': 0.05} (MuJoCo held-out evaluation)"""
+    """MuJoCo physics variation of every env, NAME=VALUE on the command line, e.g. viscosity=0.05 (held-out
+    evaluation)"""
     prompt_from: Path | None = None
     """dataset root: prompt run i with the first prompt_steps steps of its task's history i, and run it on
     that history's env (its env seed, so in Meta-World its hidden goal) instead of first_seed + i"""
