@@ -1417,12 +1417,12 @@ documented("trust", "--trust-code runs the factory a checkpoint names",
 def dataset_naming_code() -> object:
     """make_env of a task that a dataset's task JSON registered, its spec naming a factory."""
     import vintix
-    from vintix.data import read_task_metadata, write_task_metadata
+    from vintix.data import read_task_metadata, register_dataset_task, write_task_metadata
 
     probe_code()
     folder = write_task_metadata(WORK / "data-names-code" / "custom" / "probe-data", "probe-data", 39, 4,
                                  custom_task=PROBE_TASK).parent
-    read_task_metadata(folder)
+    register_dataset_task(folder, read_task_metadata(folder))
     return vintix.make_env("probe-data", seed=0)
 
 

@@ -101,6 +101,17 @@ def test_a_task_registered_from_python_makes_its_env_and_joins_the_custom_domain
     vintix.register_task("Pendulum-v1", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=50)  # same: no-op
 
 
+def test_reading_a_task_json_registers_nothing_and_opening_its_dataset_registers_its_task(no_custom_tasks, tmp_path):
+    from vintix.data import find_tasks, read_task_metadata, write_task_metadata
+
+    spec = {"env_id": "Pendulum-v1", "obs_dim": 3, "act_dim": 1, "episode_length": 200, "group": "pendulum"}
+    folder = write_task_metadata(tmp_path / "custom" / "Pendulum-v1", "Pendulum-v1", 3, 1, custom_task=spec).parent
+    assert read_task_metadata(folder)["custom_task"]["env_id"] == "Pendulum-v1"
+    assert registry.find_task("Pendulum-v1") is None
+    assert [task.task_name for task in find_tasks(tmp_path)] == ["Pendulum-v1"]
+    assert get_task("Pendulum-v1").group == "pendulum"
+
+
 def test_a_spec_that_contradicts_its_env_or_another_task_is_refused(no_custom_tasks):
     vintix.register_task("bad-pendulum", env_id="Pendulum-v1", obs_dim=4, act_dim=1, episode_length=200)
     with pytest.raises(TaskSpecError, match=r"observations of shape \(3,\), the spec says obs_dim 4"):

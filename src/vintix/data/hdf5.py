@@ -869,12 +869,20 @@ def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
     for rule, ok in checks.items():
         if not ok:
             raise DatasetError(path, f"{rule}; {fix}")
-    if "custom_task" in meta:  # a task of the user's own, registered here from the spec its collector wrote
-        try:
-            register_specs({meta["task_name"]: meta["custom_task"]}, str(path))
-        except VintixError as error:
-            raise DatasetError(path, f"its custom_task spec: {error}") from error
     return meta
+
+
+def register_dataset_task(task_dir: PathLike, meta: dict[str, Any]) -> None:
+    """Register the task of your own whose spec its collector wrote into the task JSON `meta` (``custom_task``), so
+    that the dataset's task can be made, trained on and evaluated in this process; nothing for a registered task.
+    Reading a task JSON (`read_task_metadata`) registers nothing: this is done where a dataset is opened for use."""
+    if "custom_task" not in meta:
+        return
+    path = metadata_path(task_dir)
+    try:
+        register_specs({meta["task_name"]: meta["custom_task"]}, str(path))
+    except VintixError as error:
+        raise DatasetError(path, f"its custom_task spec: {error}") from error
 
 
 def _is_dim(value: Any) -> bool:
@@ -923,10 +931,12 @@ class TaskData:
 
 
 def find_tasks(root: PathLike) -> list[TaskData]:
-    """Discover every task of a dataset root; raises DatasetError on a missing or malformed task JSON."""
+    """Discover every task of a dataset root, registering the tasks of your own it carries
+    (`register_dataset_task`); raises DatasetError on a missing or malformed task JSON."""
     tasks = []
     for task_dir in task_dirs(root):
         meta = read_task_metadata(task_dir)
+        register_dataset_task(task_dir, meta)
         obs_dim, act_dim = metadata_dims(meta)
         tasks.append(TaskData(
             task_dir.parent.name, task_dir, meta["task_name"], obs_dim, act_dim, meta, history_paths(task_dir)

@@ -40,6 +40,7 @@ from vintix.data.hdf5 import (
     official_dtype,
     open_hdf5,
     read_task_metadata,
+    register_dataset_task,
     step_num_breaks,
     task_dirs,
     translate_hdf5_errors,
@@ -84,6 +85,7 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None,
     dims, task_name, limit, discrete = None, None, None, False
     try:
         meta = read_task_metadata(task_dir)
+        register_dataset_task(task_dir, meta)  # its spec checked, and the registry's dims for it below
         dims, task_name, discrete = metadata_dims(meta), meta["task_name"], meta["action_type"] == "discrete"
         limit = episode_limit(task_name) if episode_limit else None
         expected = expected_dims(meta["task_name"]) if expected_dims else None
