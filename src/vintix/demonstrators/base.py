@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 import os
 import stat
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol, cast
 
@@ -86,60 +86,116 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
             raise VintixError(f"{spec.name!r}: a demonstrator named by the recipe ({source!r}) plays as it is: "
                               "leave out behaviour, weights and aim")
         return external_demonstrator(spec.name, source)
-    if spec.domain == "custom":
-        raise VintixError(f"task {spec.name!r} is your own, and the package has no demonstrator for it: name one in "
-                          "the recipe, demonstrator: module:callable (your Demonstrator) or sb3:ALGO:PATH.zip "
-                          "(a trained Stable-Baselines3 or sbx:ALGO:PATH.zip model)")
+    kind = expert_kind(spec)
+    if kind == "custom":
+        return _no_expert_of_your_own(spec, weights, aim)
     if behaviour not in BEHAVIOURS:
         raise VintixError(f"unknown demonstrator behaviour {behaviour!r}; choose one of {', '.join(BEHAVIOURS)}")
-    if spec.domain == "icrl":
-        from vintix.demonstrators.icrl import ICRL_BEHAVIOURS, icrl_demonstrator
-
-        if behaviour not in ICRL_BEHAVIOURS or weights is not None or aim != "hand" or reward_tolerance:
-            raise VintixError(f"{spec.name!r} is a discrete benchmark: its demonstrators play as "
-                              f"{', '.join(ICRL_BEHAVIOURS)} (vintix.demonstrators.icrl) and take no weights, aim or "
-                              f"reward_tolerance; got behaviour {behaviour!r}")
-        if behaviour in ("posterior-search", "walk-search") and spec.group == "bernoulli-bandit":
-            raise VintixError(f"{spec.name!r}: {behaviour} walks a room's cells; on a bandit use "
-                              "posterior-sampling (Thompson sampling)")
-        return icrl_demonstrator(behaviour)
+    if kind == "discrete":
+        return _discrete_demonstrator(spec, behaviour, weights, aim, reward_tolerance)
     if behaviour in ("learner", "walk-search"):
         raise VintixError(f"{spec.name!r}: behaviour {behaviour!r} exists for the discrete benchmarks (domain icrl: "
                           "Dark Room, Key-to-Door, the bandit); choose another")
     if behaviour != "expert":
-        from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator, posterior_settings
+        return _goal_inferring(spec, behaviour, weights, probe_margin, aim, lapse_probability, reward_tolerance)
+    return GOAL_AWARE_EXPERTS[kind](spec, weights, aim)
 
-        key = expert_name(spec)
-        # Trained weights aim only where the expert observes the goal (a meta-RL task's goal-aware expert).
-        if key not in DEFAULT_SETTINGS or (weights is not None and not goal_observed(spec)):
-            raise VintixError(f"{spec.name!r}: {behaviour} needs a hidden-goal task with an expert that can aim at a "
-                              f"given goal (tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.group} "
-                              f"task{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
-        expert = load_demonstrator(spec.name, weights, aim=aim)
-        settings = posterior_settings(key, behaviour, probe_margin, lapse_probability, reward_tolerance)
-        return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
-    if weights is not None and spec.domain in ("metaworld", "bidexhands"):
-        raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: Meta-World's "
-                          "are scripted and Bi-DexHands' need IsaacGym; leave the weights out")
-    if spec.domain == "metaworld":
-        from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
 
-        return ScriptedMetaWorldDemonstrator(spec.name, aim)
-    if spec.domain == "toy":
-        from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
+def expert_kind(spec: TaskSpec) -> str:
+    """Which row of `GOAL_AWARE_EXPERTS` makes `spec`'s goal-aware expert ('custom' and 'discrete' aside: a task of
+    your own names its demonstrator, the discrete benchmarks' play as `vintix.demonstrators.icrl` says)."""
+    if spec.domain in ("custom", "metaworld", "toy", "bidexhands"):
+        return spec.domain
+    if spec.domain == "icrl":
+        return "discrete"
+    if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and not goal_observed(spec):
+        return "reacher-hidden"
+    return "trained"
 
-        return ScriptedPointGoalDemonstrator()
-    if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and not goal_observed(spec):  # Reacher-hidden
-        if weights is not None:
-            raise VintixError(f"{spec.name!r}'s expert is scripted (inverse kinematics): leave the weights out")
-        from vintix.demonstrators.scripted import ScriptedReacherDemonstrator
 
-        return ScriptedReacherDemonstrator()
-    if spec.domain == "bidexhands":
-        raise VintixError(f"no demonstrator for Bi-DexHands task {spec.name!r}: its envs need IsaacGym")
+def _no_expert_of_your_own(spec: TaskSpec, weights: Path | None, aim: str) -> Demonstrator:
+    raise VintixError(f"task {spec.name!r} is your own, and the package has no demonstrator for it: name one in "
+                      "the recipe, demonstrator: module:callable (your Demonstrator) or sb3:ALGO:PATH.zip "
+                      "(a trained Stable-Baselines3 or sbx:ALGO:PATH.zip model)")
+
+
+def _scripted_metaworld(spec: TaskSpec, weights: Path | None, aim: str) -> Demonstrator:
+    _no_weights(spec, weights, "Meta-World's experts are scripted")
+    from vintix.demonstrators.scripted import ScriptedMetaWorldDemonstrator
+
+    return ScriptedMetaWorldDemonstrator(spec.name, aim)
+
+
+def _scripted_point_goal(spec: TaskSpec, weights: Path | None, aim: str) -> Demonstrator:
+    _no_weights(spec, weights, "the toy task's expert is scripted")
+    from vintix.demonstrators.scripted import ScriptedPointGoalDemonstrator
+
+    return ScriptedPointGoalDemonstrator()
+
+
+def _scripted_reacher(spec: TaskSpec, weights: Path | None, aim: str) -> Demonstrator:
+    _no_weights(spec, weights, "its expert is scripted (inverse kinematics)")
+    from vintix.demonstrators.scripted import ScriptedReacherDemonstrator
+
+    return ScriptedReacherDemonstrator()
+
+
+def _no_isaacgym(spec: TaskSpec, weights: Path | None, aim: str) -> Demonstrator:
+    _no_weights(spec, weights, "Bi-DexHands' experts need IsaacGym")
+    raise VintixError(f"no demonstrator for Bi-DexHands task {spec.name!r}: its envs need IsaacGym")
+
+
+def _trained(spec: TaskSpec, weights: Path | None, aim: str) -> Demonstrator:
     from vintix.demonstrators.trained import TrainedDemonstrator
 
     return TrainedDemonstrator(spec, weights)
+
+
+def _no_weights(spec: TaskSpec, weights: Path | None, why: str) -> None:
+    if weights is not None:
+        raise VintixError(f"{spec.name!r} has no trained demonstrator to load from {weights}: {why}; leave the "
+                          "weights out")
+
+
+GOAL_AWARE_EXPERTS: dict[str, Callable[[TaskSpec, Path | None, str], Demonstrator]] = {
+    "metaworld": _scripted_metaworld,
+    "toy": _scripted_point_goal,
+    "reacher-hidden": _scripted_reacher,
+    "bidexhands": _no_isaacgym,
+    "trained": _trained,
+}
+"""How each kind of task (`expert_kind`) gets the expert that sees its goal: (task, trained weights or None,
+aim) -> the demonstrator. MuJoCo and Industrial Benchmark tasks load the trained policy shipped for their group."""
+
+
+def _discrete_demonstrator(spec: TaskSpec, behaviour: str, weights: Path | None, aim: str,
+                           reward_tolerance: float) -> Demonstrator:
+    from vintix.demonstrators.icrl import ICRL_BEHAVIOURS, icrl_demonstrator
+
+    if behaviour not in ICRL_BEHAVIOURS or weights is not None or aim != "hand" or reward_tolerance:
+        raise VintixError(f"{spec.name!r} is a discrete benchmark: its demonstrators play as "
+                          f"{', '.join(ICRL_BEHAVIOURS)} (vintix.demonstrators.icrl) and take no weights, aim or "
+                          f"reward_tolerance; got behaviour {behaviour!r}")
+    if behaviour in ("posterior-search", "walk-search") and spec.group == "bernoulli-bandit":
+        raise VintixError(f"{spec.name!r}: {behaviour} walks a room's cells; on a bandit use "
+                          "posterior-sampling (Thompson sampling)")
+    return icrl_demonstrator(behaviour)
+
+
+def _goal_inferring(spec: TaskSpec, behaviour: str, weights: Path | None, probe_margin: float, aim: str,
+                    lapse_probability: float, reward_tolerance: float) -> Demonstrator:
+    """The goal-aware expert wrapped in a demonstrator that does not see the goal and infers it from rewards."""
+    from vintix.demonstrators.posterior import DEFAULT_SETTINGS, PosteriorSamplingDemonstrator, posterior_settings
+
+    key = expert_name(spec)
+    # Trained weights aim only where the expert observes the goal (a meta-RL task's goal-aware expert).
+    if key not in DEFAULT_SETTINGS or (weights is not None and not goal_observed(spec)):
+        raise VintixError(f"{spec.name!r}: {behaviour} needs a hidden-goal task with an expert that can aim at a "
+                          f"given goal (tasks of {', '.join(sorted(DEFAULT_SETTINGS))}), not a {spec.group} "
+                          f"task{' or trained weights' if weights is not None else ''}; use behaviour 'expert'")
+    expert = load_demonstrator(spec.name, weights, aim=aim)
+    settings = posterior_settings(key, behaviour, probe_margin, lapse_probability, reward_tolerance)
+    return PosteriorSamplingDemonstrator(expert, settings)  # type: ignore[arg-type]
 
 
 def check_aim(task: str, aim: str) -> None:
