@@ -19,7 +19,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from vintix.demonstrators.icrl import LearnerDemonstrator, PosteriorSearchDemonstrator
+from vintix.demonstrators.discrete_benchmarks import LearnerDemonstrator, PosteriorSearchDemonstrator
 from vintix.demonstrators.posterior import GoalInferringDemonstrator
 from vintix.tasks import make_env
 

@@ -1,4 +1,5 @@
-"""The discrete benchmarks (`vintix.tasks.icrl`) as AD, AD^ε and DPT define them, and their demonstrators."""
+"""The discrete benchmarks (`vintix.tasks.discrete_benchmarks`) as AD, AD^ε and DPT define them, and their
+demonstrators."""
 
 import numpy as np
 import pytest
@@ -6,10 +7,10 @@ import pytest
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.data import LearningHistory
 from vintix.demonstrators import load_demonstrator
-from vintix.demonstrators.icrl import WALK_PERSISTENCE
+from vintix.demonstrators.discrete_benchmarks import WALK_PERSISTENCE
 from vintix.errors import VintixError
 from vintix.tasks import get_task, list_tasks, make_env
-from vintix.tasks.icrl import MOVES, SIZE, START, goal_split, pair_split
+from vintix.tasks.discrete_benchmarks import MOVES, SIZE, START, goal_split, pair_split
 
 
 def play(env, actions):

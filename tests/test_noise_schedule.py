@@ -128,7 +128,7 @@ def test_a_level_holds_epsilon_constant_and_a_dpt_history_records_the_experts_ac
     with pytest.raises(ValueError, match="level"):
         NoiseSchedule(level=1.0, curvature=2.0)
     from vintix.data import LearningHistory
-    from vintix.tasks.icrl import step_towards
+    from vintix.tasks.discrete_benchmarks import step_towards
 
     def history_goal(path):
         import vintix

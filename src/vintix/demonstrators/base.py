@@ -32,9 +32,9 @@ rewards (`vintix.demonstrators.posterior`): aiming each episode at a goal drawn 
 probing the goal box's corners in the first episode and aiming later ones at the likeliest goal; or
 probing, then aiming later ones at goals drawn from the posterior (its target: the probe, then the expert);
 'posterior-search': the goals not ruled out, searched in a fixed order across episodes, for sparse rewards (on the
-discrete benchmarks, `vintix.demonstrators.icrl`, the cells along a spiral); 'walk-search' (their rooms only): a
-random walk until a reward shows the goal. 'learner' (the discrete benchmarks only): an RL algorithm learning from
-scratch, AD's own histories."""
+discrete benchmarks, `vintix.demonstrators.discrete_benchmarks`, the cells along a spiral); 'walk-search' (their
+rooms only): a random walk until a reward shows the goal. 'learner' (the discrete benchmarks only): an RL algorithm
+learning from scratch, AD's own histories."""
 PROBING_BEHAVIOURS = ("probing", "probe-then-sample")
 """The behaviours whose first episode probes the goal box (and so take a `probe_margin`)."""
 AIMS = ("hand", "gripper-centre")
@@ -103,7 +103,8 @@ def load_demonstrator(task: str, weights: Path | None = None, behaviour: str = "
 
 def expert_kind(spec: TaskSpec) -> str:
     """Which row of `GOAL_AWARE_EXPERTS` makes `spec`'s goal-aware expert ('custom' and 'discrete' aside: a task of
-    your own names its demonstrator, the discrete benchmarks' play as `vintix.demonstrators.icrl` says)."""
+    your own names its demonstrator, the discrete benchmarks' play as `vintix.demonstrators.discrete_benchmarks`
+    says)."""
     if spec.domain in ("custom", "metaworld", "toy", "bidexhands"):
         return spec.domain
     if spec.domain == "icrl":
@@ -170,12 +171,12 @@ aim) -> the demonstrator. MuJoCo and Industrial Benchmark tasks load the trained
 
 def _discrete_demonstrator(spec: TaskSpec, behaviour: str, weights: Path | None, aim: str,
                            reward_tolerance: float) -> Demonstrator:
-    from vintix.demonstrators.icrl import ICRL_BEHAVIOURS, icrl_demonstrator
+    from vintix.demonstrators.discrete_benchmarks import ICRL_BEHAVIOURS, icrl_demonstrator
 
     if behaviour not in ICRL_BEHAVIOURS or weights is not None or aim != "hand" or reward_tolerance:
         raise VintixError(f"{spec.name!r} is a discrete benchmark: its demonstrators play as "
-                          f"{', '.join(ICRL_BEHAVIOURS)} (vintix.demonstrators.icrl) and take no weights, aim or "
-                          f"reward_tolerance; got behaviour {behaviour!r}")
+                          f"{', '.join(ICRL_BEHAVIOURS)} (vintix.demonstrators.discrete_benchmarks) and take no "
+                          f"weights, aim or reward_tolerance; got behaviour {behaviour!r}")
     if behaviour in ("posterior-search", "walk-search") and spec.group == "bernoulli-bandit":
         raise VintixError(f"{spec.name!r}: {behaviour} walks a room's cells; on a bandit use "
                           "posterior-sampling (Thompson sampling)")

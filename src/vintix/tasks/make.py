@@ -53,8 +53,8 @@ def register_gymnasium_envs() -> None:
             )
     for spec in builtin_tasks("icrl"):
         if gymnasium_id(spec) not in gym.registry:
-            gym.register(gymnasium_id(spec), entry_point="vintix.tasks.icrl:icrl_env", kwargs={"name": spec.name},
-                         max_episode_steps=spec.episode_length)
+            gym.register(gymnasium_id(spec), entry_point="vintix.tasks.discrete_benchmarks:icrl_env",
+                         kwargs={"name": spec.name}, max_episode_steps=spec.episode_length)
     for spec in builtin_tasks("mujoco"):
         if spec.name in HIDDEN_GOAL_MUJOCO_TASKS and gymnasium_id(spec) not in gym.registry:
             entry_point = ("vintix.tasks.reacher_hidden:ReacherHiddenEnv" if spec.name == "Reacher-hidden-v5" else

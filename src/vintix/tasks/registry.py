@@ -29,7 +29,8 @@ from vintix.errors import UnknownTaskError
 Domain = Literal["mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "icrl", "custom"]
 Split = Literal["train", "test"]
 DOMAINS: tuple[Domain, ...] = ("mujoco", "metaworld", "industrial_benchmark", "bidexhands", "toy", "icrl", "custom")
-"""'icrl': the discrete benchmarks in-context RL is measured on (Dark Room, Key-to-Door, bandits; `vintix.tasks.icrl`);
+"""'icrl': the discrete benchmarks in-context RL is measured on (Dark Room, Key-to-Door, bandits;
+`vintix.tasks.discrete_benchmarks`);
 'custom': tasks registered from outside the package (`register_task`)"""
 ActionType = Literal["continuous", "discrete"]
 ACTION_TYPES: tuple[ActionType, ...] = ("continuous", "discrete")
@@ -171,7 +172,7 @@ def _hidden_goal_mujoco_tasks() -> list[TaskSpec]:
 def _builtin_tasks() -> dict[str, TaskSpec]:
     table = resources.files("vintix.tasks").joinpath("paper_tasks.csv").read_text()
     paper = list(map(_spec_from_row, csv.DictReader(table.splitlines())))
-    from vintix.tasks.icrl import icrl_task_specs
+    from vintix.tasks.discrete_benchmarks import icrl_task_specs
 
     return {spec.name: spec for spec in paper + _toy_tasks() + _hidden_goal_mujoco_tasks() + icrl_task_specs()}
 

@@ -72,7 +72,7 @@ class Reference:
         return (returns - self.random) / (self.expert - self.random)
 
 
-OPTIMAL_PROVENANCE = "the optimal return of the run's own hidden goal (vintix.tasks.icrl)"
+OPTIMAL_PROVENANCE = "the optimal return of the run's own hidden goal (vintix.tasks.discrete_benchmarks)"
 ENV_OPTIMUM_REFERENCE = Reference(0.0, 1.0, "the optimal return the env gives for each run's own goal (its "
                                   "optimal_return())", per_goal=True)
 """The 'ours' reference of a task of your own with no reference scores whose env offers `optimal_return`."""

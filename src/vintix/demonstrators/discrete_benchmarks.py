@@ -1,4 +1,5 @@
-"""Demonstrators of the discrete benchmarks (`vintix.tasks.icrl`): the sources of learning histories compared there.
+"""Demonstrators of the discrete benchmarks (`vintix.tasks.discrete_benchmarks`): the sources of learning histories
+compared there.
 
 - ``expert``: the goal-aware optimal policy (the shortest path to the goal; to the key, then the door; the best
   arm). With the collector's ε-greedy noise annealed from 1 to 0 along the history it plays AD^ε's histories
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from vintix.tasks.icrl import (
+from vintix.tasks.discrete_benchmarks import (
     MOVES,
     SIZE,
     START,
@@ -56,7 +57,7 @@ def _actions(env: gym.Env) -> int:
 def _room(env: gym.Env) -> GridEnv:
     """The room under `env`'s wrappers."""
     inner = env.unwrapped
-    assert isinstance(inner, GridEnv), f"{inner} is not a room of vintix.tasks.icrl"
+    assert isinstance(inner, GridEnv), f"{inner} is not a room of vintix.tasks.discrete_benchmarks"
     return inner
 
 
