@@ -1435,7 +1435,7 @@ def dataset_naming_an_env_module() -> Path:
     """A dataset whose task JSON names ``env_id: trust_probe_env:ProbeEnv-v0``, the module shipped beside it (in the
     folder a command runs from): importing it leaves a mark."""
     from vintix.data import LearningHistoryWriter, write_task_metadata
-    from vintix.data.hdf5 import TRUNCATED
+    from vintix.data.layout import TRUNCATED
 
     root = WORK / "data-names-env-module"
     task = {"env_id": "trust_probe_env:ProbeEnv-v0", "obs_dim": 2, "act_dim": 1, "episode_length": 5}

@@ -12,7 +12,7 @@ from vintix.cli import app
 from vintix.collect import CollectionPlan, collect
 from vintix.collect.export import export_minari
 from vintix.data import LearningHistory, LearningHistoryWriter, find_tasks, write_task_metadata
-from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED
+from vintix.data.layout import HISTORY_END, TERMINATED, TRUNCATED
 from vintix.data.validate import validate_history
 from vintix.errors import DatasetError, VintixError
 from vintix.tasks import registry

@@ -14,7 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from vintix.collect.noise import NoiseSchedule, fit_knots
-from vintix.data.hdf5 import DatasetError, LearningHistory, PathLike, find_tasks
+from vintix.data.discovery import find_tasks
+from vintix.data.layout import PathLike
+from vintix.data.reader import LearningHistory
+from vintix.errors import DatasetError
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,8 @@ from vintix.atomic import check_output_kind, folder_lock, remove_leftovers
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, epsilon_greedy, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
-from vintix.data.hdf5 import HISTORY_END, TERMINATED, TRUNCATED, UNFINISHED_FILES, history_bytes
+from vintix.data.layout import HISTORY_END, TERMINATED, TRUNCATED, history_bytes
+from vintix.data.writer import UNFINISHED_FILES
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
 from vintix.errors import VintixError, call_plugin
 from vintix.fields import check_field_types
@@ -234,7 +235,7 @@ class _Block:
     """Uniform noise of each history for these steps, drawn from its own RNG in one call per block (a discrete
     task's: two uniform [0, 1) draws per step, `epsilon_greedy`'s coin and random action)."""
     episode_end: np.ndarray
-    """0, or how the episode ended at this step (`vintix.data.hdf5.TERMINATED`, ...)"""
+    """0, or how the episode ended at this step (`vintix.data.layout.TERMINATED`, ...)"""
     final_observation: np.ndarray
     """the observation the env returned after an episode's last step (meaningful where `episode_end`)"""
 

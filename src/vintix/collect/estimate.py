@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from vintix.collect.bench import CollectBenchmark
 from vintix.collect.collector import CollectionPlan, batches
-from vintix.data.hdf5 import history_bytes
+from vintix.data.layout import history_bytes
 from vintix.errors import VintixError
 from vintix.tasks import get_task
 

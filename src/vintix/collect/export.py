@@ -32,8 +32,10 @@ from minari.namespace import validate_namespace
 from minari.storage.datasets_root_dir import get_dataset_path
 
 from vintix.collect.noise import NoiseSchedule
-from vintix.data.hdf5 import TERMINATED, DatasetError, LearningHistory, TaskData, find_tasks
-from vintix.errors import VintixError
+from vintix.data.discovery import TaskData, find_tasks
+from vintix.data.layout import TERMINATED
+from vintix.data.reader import LearningHistory
+from vintix.errors import DatasetError, VintixError
 from vintix.tasks import TaskSpec, action_space_of, find_task, gymnasium_id, make_env
 from vintix.tasks.custom import import_code
 

@@ -1,11 +1,6 @@
 """Learning-history datasets in the official Vintix format: writer, lazy reader, discovery, validation."""
 
-from vintix.data.hdf5 import (
-    DTYPES,
-    MAX_GROUP_ROWS,
-    DatasetError,
-    LearningHistory,
-    LearningHistoryWriter,
+from vintix.data.discovery import (
     TaskData,
     find_tasks,
     history_paths,
@@ -16,7 +11,11 @@ from vintix.data.hdf5 import (
     task_dirs,
     write_task_metadata,
 )
+from vintix.data.layout import DTYPES, MAX_GROUP_ROWS
+from vintix.data.reader import LearningHistory
 from vintix.data.validate import Problem, TaskSummary, summarize_dataset, validate_dataset, validate_task
+from vintix.data.writer import LearningHistoryWriter
+from vintix.errors import DatasetError
 
 __all__ = [
     "DTYPES",

@@ -29,7 +29,9 @@ from matplotlib.figure import Figure  # figures straight to files: no pyplot sta
 from scipy.stats import spearmanr, trim_mean
 
 from vintix.atomic import atomic_path
-from vintix.data.hdf5 import LearningHistory, PathLike, find_tasks
+from vintix.data.discovery import find_tasks
+from vintix.data.layout import PathLike
+from vintix.data.reader import LearningHistory
 from vintix.errors import UnknownTaskError, VintixError
 from vintix.tasks.scores import reference
 

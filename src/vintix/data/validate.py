@@ -15,7 +15,16 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from vintix.data.hdf5 import (
+from vintix.data.discovery import (
+    find_tasks,
+    history_paths,
+    metadata_dims,
+    metadata_path,
+    read_task_metadata,
+    register_dataset_task,
+    task_dirs,
+)
+from vintix.data.layout import (
     DTYPES,
     EPISODE_END_DATASETS,
     EPISODE_END_KIND,
@@ -26,25 +35,18 @@ from vintix.data.hdf5 import (
     NUMERIC_KINDS,
     TERMINATED,
     TRUNCATED,
-    DatasetError,
     Layout,
-    LearningHistory,
     PathLike,
     ProblemLog,
     dims_text,
-    find_tasks,
-    history_paths,
     inspect_layout,
-    metadata_dims,
-    metadata_path,
     official_dtype,
     open_hdf5,
-    read_task_metadata,
-    register_dataset_task,
     step_num_breaks,
-    task_dirs,
     translate_hdf5_errors,
 )
+from vintix.data.reader import LearningHistory
+from vintix.errors import DatasetError
 
 ExpectedDims = Callable[[str], tuple[int, int] | tuple[int, int, bool] | None]
 """task_name -> (obs_dim, act_dim) from the task registry, with ``True`` third for a discrete task (whose act_dim

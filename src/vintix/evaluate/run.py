@@ -33,7 +33,8 @@ from tqdm import tqdm
 from vintix import cluster
 from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_path, check_replaceable, folder_lock
-from vintix.data.hdf5 import LearningHistory, find_tasks
+from vintix.data.discovery import find_tasks
+from vintix.data.reader import LearningHistory
 from vintix.errors import UnknownTaskError, VintixError, json_loads
 from vintix.evaluate.config import ML1_ADAPTATION_SHOTS, ML1_SCORED_SHOTS, PLATEAU_SHOTS, EvalConfig, EvalConfigError
 from vintix.evaluate.summary import best_k_plateau, estimate_with_ci

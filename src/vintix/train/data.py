@@ -28,7 +28,9 @@ import numpy as np
 import torch
 
 from vintix.atomic import atomic_write_text
-from vintix.data.hdf5 import LearningHistory, TaskData, dims_text, find_tasks
+from vintix.data.discovery import TaskData, find_tasks
+from vintix.data.layout import dims_text
+from vintix.data.reader import LearningHistory
 from vintix.data.validate import task_mismatch, validate_history
 from vintix.errors import DatasetError, UnknownTaskError, VintixError, json_loads
 from vintix.model.model import GroupSpec, TaskNorm, episode_returns_so_far

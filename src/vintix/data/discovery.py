@@ -1,0 +1,142 @@
+"""A dataset's task folders: each task's JSON (written, read, checked) and the history files beside it
+(`find_tasks`); the layout: docs/data-format.md."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from vintix.atomic import atomic_write_text
+from vintix.data.layout import (
+    ACTION_TYPES,
+    PathLike,
+    is_dim,
+)
+from vintix.errors import DatasetError, VintixError, json_loads
+from vintix.tasks.custom import register_specs
+
+_REQUIRED_KEYS = ("task_name", "observation_shape", "action_dim", "action_type")
+
+
+def task_directory(root: PathLike, domain: str, task_dir_name: str) -> Path:
+    """``<root>/<domain>/<task_dir_name>``: where a task's JSON and histories live."""
+    return Path(root) / domain / task_dir_name
+
+
+def metadata_path(task_dir: PathLike) -> Path:
+    """The task JSON is named after its folder: ``<task_dir>/<task_dir>.json``."""
+    task_dir = Path(task_dir)
+    return task_dir / f"{task_dir.name}.json"
+
+
+def write_task_metadata(task_dir: PathLike, task_name: str, obs_dim: int, act_dim: int, discrete: bool = False,
+                        **extra: Any) -> Path:
+    """Write the task JSON atomically (extra keys such as ``reward_scale`` or ``group`` are kept); `discrete`: the
+    task has `act_dim` discrete actions (``action_type`` 'discrete', our extension)."""
+    clash = set(extra) & set(_REQUIRED_KEYS)
+    if clash:
+        raise ValueError(f"extra metadata keys {sorted(clash)} would overwrite required ones; pass them as arguments")
+    meta = {"task_name": task_name, "observation_shape": {"proprio": [obs_dim]}, "action_dim": act_dim,
+            "action_type": "discrete" if discrete else "continuous", **extra}
+    path = metadata_path(task_dir)
+    atomic_write_text(path, json.dumps(meta, indent=2) + "\n")
+    return path
+
+
+def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
+    """Load and check the task JSON; see `metadata_dims` for the dims it declares."""
+    path = metadata_path(task_dir)
+    fix = "fix it or rewrite it with vintix.data.write_task_metadata()"
+    if not path.is_file():
+        raise DatasetError(
+            path, f"missing task metadata (keys {list(_REQUIRED_KEYS)}); write it with write_task_metadata()"
+        )
+    try:
+        meta = json_loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise DatasetError(path, f"not valid JSON ({err}); {fix}") from err
+    if not isinstance(meta, dict) or any(key not in meta for key in _REQUIRED_KEYS):
+        raise DatasetError(path, f"needs keys {list(_REQUIRED_KEYS)}; {fix}")
+    proprio = meta["observation_shape"].get("proprio") if isinstance(meta["observation_shape"], dict) else None
+    checks = {
+        "task_name must be a non-empty string": isinstance(meta["task_name"], str) and meta["task_name"],
+        "observation_shape must be {'proprio': [obs_dim]}": (
+            isinstance(proprio, list) and len(proprio) == 1 and is_dim(proprio[0])
+        ),
+        "action_dim must be a positive integer": is_dim(meta["action_dim"]),
+        "action_type must be 'continuous' (or 'discrete', vintix's extension)": meta["action_type"] in ACTION_TYPES,
+    }
+    for rule, ok in checks.items():
+        if not ok:
+            raise DatasetError(path, f"{rule}; {fix}")
+    return meta
+
+
+def register_dataset_task(task_dir: PathLike, meta: dict[str, Any]) -> None:
+    """Register the task of your own whose spec its collector wrote into the task JSON `meta` (``custom_task``), so
+    that the dataset's task can be made, trained on and evaluated in this process; nothing for a registered task.
+    Reading a task JSON (`read_task_metadata`) registers nothing: this is done where a dataset is opened for use."""
+    if "custom_task" not in meta:
+        return
+    path = metadata_path(task_dir)
+    try:
+        register_specs({meta["task_name"]: meta["custom_task"]}, str(path))
+    except VintixError as error:
+        raise DatasetError(path, f"its custom_task spec: {error}") from error
+
+
+def metadata_dims(meta: dict[str, Any]) -> tuple[int, int]:
+    """(obs_dim, act_dim) declared by a task JSON read with `read_task_metadata`."""
+    return meta["observation_shape"]["proprio"][0], meta["action_dim"]
+
+
+def task_dirs(root: PathLike) -> list[Path]:
+    """Every ``<root>/<domain>/<task_dir>`` folder, sorted; hidden folders are skipped."""
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(root, "dataset root is not a directory; check the path")
+
+    def subdirs(folder: Path) -> list[Path]:
+        return sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith("."))
+
+    return [task for domain in subdirs(root) for task in subdirs(domain)]
+
+
+def history_paths(task_dir: PathLike) -> list[Path]:
+    """The task's finished histories, sorted (``*.h5.partial`` files are unfinished and never match)."""
+    return sorted(p for p in Path(task_dir).glob("*.h5") if p.is_file())
+
+
+@dataclass(frozen=True)
+class TaskData:
+    """One task folder of a dataset: its metadata and learning history files."""
+
+    domain: str
+    task_dir: Path
+    task_name: str
+    obs_dim: int
+    act_dim: int
+    """action channels, or a discrete task's number of actions"""
+    metadata: dict[str, Any] = field(repr=False)
+    history_paths: list[Path] = field(repr=False)
+
+    @property
+    def discrete(self) -> bool:
+        """Whether the task's JSON declares discrete actions."""
+        return bool(self.metadata["action_type"] == "discrete")
+
+
+def find_tasks(root: PathLike) -> list[TaskData]:
+    """Discover every task of a dataset root, registering the tasks of your own it carries
+    (`register_dataset_task`); raises DatasetError on a missing or malformed task JSON."""
+    tasks = []
+    for task_dir in task_dirs(root):
+        meta = read_task_metadata(task_dir)
+        register_dataset_task(task_dir, meta)
+        obs_dim, act_dim = metadata_dims(meta)
+        tasks.append(TaskData(
+            task_dir.parent.name, task_dir, meta["task_name"], obs_dim, act_dim, meta, history_paths(task_dir)
+        ))
+    return tasks
