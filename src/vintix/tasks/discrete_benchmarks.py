@@ -12,13 +12,13 @@ it: only the rewards reveal it, so a model that ignores them cannot beat a goal-
   test (its very cells, `AD_EPS_TEST_GOALS`). ``DarkRoom-v0`` draws its goal from the 65, ``DarkRoom-heldout-v0``
   from the 16 (a task of its own, so training data and held-out goals can never mix).
 - **Dark Room Hard** (``DarkRoomHard-v0``, ``DarkRoomHard-heldout-v0``): the same room, reward 1 only the first
-  time an episode reaches the goal.
+  time an episode reaches the goal. Ours: AD's Dark Room Hard is a 17×17 room with 289 goals, not comparable.
 - **Key-to-Door** (``KeyToDoor-v0``, ``KeyToDoor-heldout-v0``): the same room and actions, a hidden key and a
   hidden door (distinct cells); reward 1 the first time the agent stands on the key, then 1 when it stands on the
   door holding it, which ends the episode; 50-step episodes. The observation is the position only: whether the key
   is held is in the context (its reward). Held-out pairs: a fixed fifth of the 81 × 80 (key, door) pairs.
   ``KeyToDoorRandomStart-v0`` (and ``-heldout-v0``): AD^ε's version, each episode starting on a random cell other
-  than the key, so that no episode is a copy of the last.
+  than the key (AD's starts on a random cell too), so that no episode is a copy of the last.
 - **Bernoulli bandit** (``BernoulliBandit-v0``): 5 arms whose success probabilities are drawn uniformly from [0, 1]
   by the seed; an episode is 10 pulls (so a token carries the previous pull's arm and reward) and the context
   carries over across episodes. The observation is a constant 0. New bandits: new seeds (the means are

@@ -4,7 +4,9 @@ The tasks on which meta-RL measures adaptation from rewards (MAML, Finn et al., 
 VariBAD, Zintgraf et al., 2020; RL² is compared on them there). Each hides one parameter of the reward, drawn from
 the env's seed and kept for the env's life, never in the observation; only the rewards reveal it.
 
-- **HalfCheetah-Vel** (``HalfCheetah-Vel-v5``): run at a target velocity drawn uniformly from [0, 3] (m/s);
+- **HalfCheetah-Vel** (``HalfCheetah-Vel-v5``): run at a target velocity drawn uniformly from [0, 3] (m/s), as
+  PEARL's and VariBAD's released code draw it (``sample_tasks`` in katerakelly/oyster and lmzintgraf/varibad; their
+  docstrings, copied from MAML's, say [0, 2]); MAML's own is [0, 2] (cbfinn/maml_rl ``sample_goals``);
   reward ``-|v - v_target| - 0.05 * |a|^2`` (VariBAD's and PEARL's ``forward_reward - 0.5 * 1e-1 * sum(a^2)``).
 - **HalfCheetah-Dir** (``HalfCheetah-Dir-v5``): run forward or backward, the direction drawn from {-1, +1};
   reward ``direction * v - 0.05 * |a|^2``.
