@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import threading
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -12,6 +13,13 @@ import torch
 from gymnasium.spaces import Box
 
 import vintix
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    api_error,
+    bad_input_test,
+    model_checkpoint,
+    work,
+    workspace,
+)
 from inference_model import one_torch_thread, random_inputs, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent, AgentInputError, AgentOutputError, AgentStateError
 from vintix.errors import UnknownTaskError
@@ -295,3 +303,94 @@ def test_threads_sets_torchs_cpu_threads_when_asked_and_leaves_them_otherwise():
             Agent(tiny_model(), threads=0)
     finally:
         torch.set_num_threads(before)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+def agent(tasks: list[str] | None = None) -> object:
+    from vintix.agent import Agent
+
+    a = Agent.from_pretrained(model_checkpoint())
+    if tasks is not None:
+        a.reset(tasks)
+    return a
+
+
+api_error("agent", "act before reset", lambda: agent().act([np.zeros(39)], [0.0], [True]), "reset")
+api_error("agent", "reset with no tasks", lambda: agent([]), "at least one task")
+# Issue 55, class 6: every Python entry point checks its arguments' types and ranges.
+api_error("agent", "reset with a None task", lambda: agent([None]), "must be task names")  # type: ignore[list-item]
+api_error("agent", "reset with one name, not a list", lambda: agent("reach-v3"), "a list of task names")  # type: ignore[arg-type]
+for threads in (1.5, "2", True, 2**40, 100000, 0, -1):
+    api_error("agent", f"Agent(threads={threads!r})",
+              lambda threads=threads: __import__("vintix").Agent.from_pretrained(model_checkpoint(), threads=threads),
+              "whole number of CPU threads from 1 to 1024")
+api_error("agent", "reset with an unknown task", lambda: agent(["reech-v3"]), "Did you mean")
+api_error("agent", "reset with a task of another group", lambda: agent(["Hopper-v5"]), "no encoder")
+api_error("agent", "reset with too few action spaces", lambda: agent().reset(["reach-v3", "push-v3"], []),
+          "action spaces")
+api_error("agent", "act with a NaN observation", lambda: agent(["reach-v3"]).act([np.full(39, np.nan)], [0.0], [True]),
+          "NaN or inf")
+api_error("agent", "act with an inf reward", lambda: agent(["reach-v3"]).act([np.zeros(39)], [np.inf], [False]),
+          "NaN or inf")
+api_error("agent", "act with a wrong observation size", lambda: agent(["reach-v3"]).act([np.zeros(11)], [0.0], [True]),
+          "shape (11,)")
+api_error("agent", "act with two observations for one env", lambda: agent(["reach-v3"]).act(
+    [np.zeros(39), np.zeros(39)], [0.0, 0.0], [True, True]), "reset with 1 envs")
+api_error("agent", "keep an index out of range", lambda: agent(["reach-v3"]).keep([3]), "keep needs indices")
+api_error("agent", "act with a text reward", lambda: agent(["reach-v3"]).act([np.zeros(39)], ["lots"], [False]),
+          "reward")
+api_error("agent", "act with a None observation", lambda: agent(["reach-v3"]).act([None], [0.0], [True]),
+          "real numbers")
+api_error("agent", "from_pretrained on a device this machine lacks", lambda: __import__("vintix").Agent.from_pretrained(
+    model_checkpoint(), device="cuda" if not torch.cuda.is_available() else "tpu"), "device")
+api_error("agent", "reset with an action space of the wrong size", lambda: agent().reset(
+    ["reach-v3"], [__import__("gymnasium").spaces.Box(-1, 1, (7,))]), "action space has shape (7,)")
+
+
+def nan_model_acts() -> object:
+    from vintix.agent import Agent
+
+    a = Agent.from_pretrained(model_checkpoint())
+    with torch.no_grad():
+        for parameter in a.model.heads.parameters():
+            parameter.fill_(float("nan"))
+    a.reset(["reach-v3"])
+    return a.act([np.zeros(39)], [0.0], [True])
+
+
+api_error("agent", "act with a NaN model", nan_model_acts, "NaN/inf")
+api_error("agent", "prompt with NaN rewards", lambda: agent(["reach-v3"]).prompt(
+    [np.zeros((5, 39))], [np.zeros((5, 4))], [np.full(5, np.nan)], [np.arange(5)]), "NaN or inf")
+api_error("agent", "prompt longer than the window", lambda: agent(["reach-v3"]).prompt(
+    [np.zeros((100, 39))], [np.zeros((100, 4))], [np.zeros(100)], [np.arange(100)]), "window")
+api_error("agent", "prompts of different lengths", lambda: agent(["reach-v3", "push-v3"]).prompt(
+    [np.zeros((5, 39)), np.zeros((4, 39))], [np.zeros((5, 4)), np.zeros((4, 4))], [np.zeros(5), np.zeros(4)],
+    [np.arange(5), np.arange(4)]), "same number of steps")
+api_error("agent", "from_pretrained of a missing name",
+          lambda: __import__("vintix").Agent.from_pretrained("no-such-model"), "no shipped model")
+
+# The agent never changes the experiment silently (issue 47, class 5).
+def predict_after(first: dict[str, object], then: dict[str, object], envs: int = 1) -> Callable[[], object]:
+    def call() -> object:
+        import vintix
+
+        agent = vintix.Agent.from_pretrained(model_checkpoint())
+        agent.reset(["reach-v3"] * envs)
+        obs = np.zeros(39) if envs == 1 else np.zeros((envs, 39))
+        agent.predict(obs, **first)
+        return agent.predict(obs, **then)
+    return call
+
+
+api_error("agent", "predict with no reward mid-episode (it would feed zeros)",
+          predict_after({}, {"reward": None, "episode_start": False}), "reward is None")
+api_error("agent", "predict with one reward for two envs", predict_after({}, {"reward": 0.5, "episode_start": [False,
+          False]}, envs=2), "reward has 1 value")
+api_error("agent", "predict with three episode_start flags for two envs", predict_after(
+    {}, {"reward": [0.5, 0.5], "episode_start": [False, False, True]}, envs=2), "episode_start has 3 value")
+
+
+test_bad_input_ends_as_expected = bad_input_test("agent")

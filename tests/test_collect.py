@@ -2,6 +2,7 @@
 
 import filecmp
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -14,6 +15,19 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    bad_input_test,
+    cli_error,
+    collected,
+    documented,
+    file_at,
+    invoke,
+    not_written,
+    straight_and_killed_runs,
+    truncate_file,
+    work,
+    workspace,
+)
 from conftest import HANG_GUARD_S, child_env, fill_up
 from vintix.atomic import FolderInUseError, folder_lock
 from vintix.collect import CollectionError, CollectionPlan, CollectionSettingsError, NoiseSchedule, collect
@@ -334,3 +348,111 @@ def test_the_summary_has_one_row_per_task_and_leaves_out_episodes_the_historys_e
         with LearningHistory(path) as history:
             complete.append(history.episode_returns()[-2])  # the last complete episode
     assert float(cells[5]) == pytest.approx(np.mean(complete), abs=0.05)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+# Collection
+cli_error("collect", "--plan with a damaged rates table", lambda: [
+    "collect", "--recipe", "tiny", "--plan", "--rates", file_at("rates.csv", "task,speed\nreach-v3,fast\n")()],
+    "not a readable rates table")
+cli_error("collect", "--plan with --workers 0", ["collect", "--recipe", "paper", "--plan", "--workers", "0"],
+          "workers must be >= 1")
+cli_error("collect", "neither --task nor --recipe", lambda: ["collect", "--out", work() / "c1"],
+          "exactly one of --task")
+cli_error("collect", "both --task and --recipe", lambda: ["collect", "--task", "reach-v3", "--recipe", "tiny",
+                                                          "--out", work() / "c2"], "exactly one of --task")
+cli_error("collect", "unknown task", lambda: ["collect", "--task", "reech-v3", "--out", work() / "c3"], "Did you mean")
+cli_error("collect", "task without a demonstrator",
+          lambda: ["collect", "--task", "Humanoid-v5", "--out", work() / "c4"],
+          "no trained demonstrator")
+cli_error("collect", "Bi-DexHands task", lambda: ["collect", "--task", "Hand-Pen", "--out", work() / "c5"], "Hand-Pen")
+for option, value, needle in [("--envs-per-batch", "0", "envs_per_batch=0"), ("--histories", "0", "histories=0"),
+                              ("--steps", "0", "steps=0"), ("--steps", "-5", "steps=-5"), ("--seed", "-1", "seed=-1"),
+                              ("--curvature", "0", "curvature"),
+                              ("--noise-free-fraction", "1.5", "noise_free_fraction"),
+                              ("--workers", "0", "workers")]:
+    cli_error("collect", f"{option} {value}", lambda o=option, v=value: ["collect", "--task", "reach-v3", o, v,
+                                                                         "--out", work() / "c6"], needle,
+              after=not_written(lambda: work() / "c6"))
+cli_error("collect", "unknown recipe", lambda: ["collect", "--recipe", "nosuch", "--out", work() / "c7"],
+          "no recipe file")
+cli_error("collect", "recipe: invalid YAML", lambda: ["collect", "--recipe", file_at("bad.yaml", "tasks: [a, : b")(),
+                                                      "--out", work() / "c8"], "not valid YAML")
+for name, recipe, needle in [
+    ("unknown setting", "tasks:\n  reach-v3: {stpes: 100}\n", "unknown setting"),
+    ("steps is text", "tasks:\n  reach-v3: {histories: 1, steps: many}\n", "steps must be int"),
+    ("no histories anywhere", "tasks:\n  reach-v3: {steps: 100}\n", "no histories"),
+    ("tasks is a list", "tasks: [reach-v3]\n", "non-empty 'tasks:' mapping"),
+    ("task settings are a number", "tasks:\n  reach-v3: 5\n", "must be mappings"),
+    ("unknown task", "tasks:\n  reech-v3: {}\n", "reech-v3"),
+    ("rising knots", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0.2, 0.5, 0]}\n", "never rising"),
+    ("knots and a curvature", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0], curvature: 2}\n",
+     "not both"),
+    ("knots are text", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: steep}\n", "knots must be"),
+    ("knots and a pilot", "tasks:\n  reach-v3: {histories: 1, steps: 10, knots: [1, 0], pilot_steps: 500}\n",
+     "not both"),
+    ("negative pilot", "tasks:\n  reach-v3: {histories: 1, steps: 10, pilot_steps: -1}\n", "pilot_steps must be >= 0"),
+    ("pilot shorter than two episodes", "tasks:\n  reach-v3: {histories: 1, steps: 10, pilot_steps: 150}\n",
+     "too few to fit knots to"),
+]:
+    slug = name.replace(" ", "-")
+    cli_error("collect", f"recipe: {name}", lambda r=recipe, f=f"{slug}.yaml": [
+        "collect", "--recipe", file_at(f, r)(), "--out", work() / f"c-{f}"], needle)
+cli_error("collect", "--out is a file", lambda: ["collect", "--task", "reach-v3", "--steps", "10", "--out",
+                                                 file_at("out-file", "x")()], "not a directory")
+cli_error("collect", "folder finished with other --steps", lambda: ["collect", "--task", "reach-v3", "--histories", "1",
+                                                                    "--steps", "100", "--out", collected()],
+          "made with other settings")
+cli_error("collect", "folder finished with other --seed", lambda: [
+    "collect", "--task", "reach-v3", "--histories", "1", "--steps", "150", "--seed", "4", "--out", collected()],
+          "made with other settings")
+
+
+def truncated_history_in_collection() -> list[str]:
+    out = work() / "collected-truncated"
+    shutil.copytree(collected(), out, dirs_exist_ok=True)
+    truncate_file(out / "metaworld" / "reach-v3" / "history-0000.h5")
+    return ["collect", "--task", "reach-v3", "--histories", "1", "--steps", "150", "--out", out]
+
+
+cli_error("collect", "a finished history was truncated since", truncated_history_in_collection, "history-0000.h5")
+
+
+def rerun_collects_nothing() -> str | None:
+    code, output = invoke("collect", "--task", "reach-v3", "--histories", "1", "--steps", "150", "--out", collected())
+    return None if code == 0 and "collected 0 steps" in output else f"exit {code}: {output[-200:]}"
+
+
+documented("collect", "re-running a finished collection collects nothing", rerun_collects_nothing)
+
+
+def partial_leftover_is_overwritten() -> str | None:
+    out = work() / "collected-partial"
+    folder = out / "metaworld" / "reach-v3"
+    folder.mkdir(parents=True)
+    (folder / "history-0000.h5.partial").write_bytes(b"left by kill -9")
+    code, output = invoke("collect", "--task", "reach-v3", "--histories", "1", "--steps", "50", "--out", out)
+    left = sorted(p.name for p in folder.iterdir())
+    return None if code == 0 and left == ["history-0000.h5", "reach-v3.json"] else f"exit {code}, files {left}"
+
+
+documented("collect", "a .partial left by kill -9 is replaced by the finished file", partial_leftover_is_overwritten)
+
+
+def killed_collection_resumes_identically() -> str | None:
+    """kill -9 a real `python -m vintix collect` mid-run; the re-run equals an uninterrupted one."""
+    args = ["collect", "--task", "reach-v3", "--histories", "4", "--steps", "400", "--envs-per-batch", "2"]
+    straight, killed, code, _ = straight_and_killed_runs(args, "kill", "metaworld/reach-v3/history-0000.h5")
+    names = ["reach-v3.json"] + [f"history-{i:04d}.h5" for i in range(4)]
+    folders = [run / "metaworld" / "reach-v3" for run in (straight, killed)]
+    same = all((folders[0] / n).read_bytes() == (folders[1] / n).read_bytes() for n in names)
+    return None if code == 0 and same else f"exit {code}, identical files: {same}"
+
+
+documented("collect", "kill -9 mid-collection, then re-run: identical bytes", killed_collection_resumes_identically)
+
+
+test_bad_input_ends_as_expected = bad_input_test("collect")

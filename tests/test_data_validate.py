@@ -3,14 +3,33 @@
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import sys
+from collections.abc import Callable
 
 import h5py
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    DAMAGE_NAMES,
+    DATA,
+    DEEP_JSON,
+    api_error,
+    bad_input_test,
+    clean_data,
+    cli_error,
+    collected,
+    damaged_data,
+    documented,
+    empty_dir,
+    ib7_data,
+    missing,
+    work,
+    workspace,
+)
 from conftest import flip_a_byte_of_data
 from vintix.cli import app
 from vintix.data import (
@@ -236,3 +255,111 @@ def test_vintix_data_stats_prints_the_return_of_each_episode_index(dataset):
     hopper = {s.task_name: s for s in summarize_dataset(dataset)}["hopper-v5"]
     row = next(line for line in result.output.splitlines() if line.lstrip("│ ").startswith("hopper-v5"))
     assert [cell.strip() for cell in row.split("│")[2:-1]] == [f"{v:.3g}" for v in hopper.return_by_episode]
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+# Dataset tools
+cli_error("data", "validate a missing folder", ["data", "validate", missing("data")], "not a directory")
+cli_error("data", "validate an empty folder", lambda: ["data", "validate", empty_dir("empty")()], "dataset root")
+for damage, (needle, _) in DAMAGE_NAMES.items():
+    cli_error("data", f"validate: {damage}", lambda d=damage: ["data", "validate", DATA[d]()], needle)
+cli_error("data", "validate: dims differ from the registry (IB, 7 obs dims)", lambda: ["data", "validate", ib7_data()],
+          "registry expects (6, 3)")
+cli_error("data", "stats of a missing folder", ["data", "stats", missing("data")], "not a directory")
+cli_error("data", "stats: garbage task JSON", lambda: ["data", "stats", DATA["garbage-json"]()], "not valid JSON")
+cli_error("data", "stats: truncated history", lambda: ["data", "stats", DATA["truncated"]()], "history-0000.h5")
+cli_error("data", "plot: unknown reference table", lambda: ["data", "plot", clean_data(), "--reference", "bogus",
+                                                            "--out", work() / "figs"], "bogus")
+cli_error("data", "plot: zero bins", lambda: ["data", "plot", clean_data(), "--bins", "0", "--out", work() / "figs0"],
+          "--bins")
+cli_error("data", "plot: corrupted block", lambda: ["data", "plot", DATA["corrupted-block"](), "--reference", "paper",
+                                                    "--out", work() / "figs1"], "failed its checksum")
+
+cli_error("data", "fit-schedule: histories without a recorded schedule", lambda: ["data", "fit-schedule", clean_data()],
+          "records no noise schedule")
+cli_error("data", "fit-schedule: one knot", lambda: ["data", "fit-schedule", clean_data(), "--knots", "1"], "--knots")
+cli_error("data", "smoothness --own-expert: histories without a recorded schedule",
+          lambda: ["data", "smoothness", clean_data(), "--own-expert"], "records no noise schedule")
+cli_error("data", "smoothness --own-expert: no complete noise-free episode",
+          lambda: ["data", "smoothness", collected(), "--own-expert"], "no complete noise-free episode")
+
+
+def corrupted_block_read() -> object:
+    from vintix.data import LearningHistory
+
+    return LearningHistory(DATA["corrupted-block"]() / "metaworld" / "reach-v3" / "history-0000.h5").read(0, 300)
+
+
+api_error("data", "LearningHistory.read over a corrupted block", corrupted_block_read, "history-0000.h5")
+def read_out_of_range() -> str | None:
+    from vintix.data import LearningHistory
+
+    path = clean_data() / "metaworld" / "reach-v3" / "history-0000.h5"
+    try:
+        LearningHistory(path).read(250, 400)
+    except IndexError as error:  # a sequence's error, naming the file and its rows
+        return None if str(path) in str(error) and "[0, 300)" in str(error) else str(error)
+    return "no error"
+
+
+documented("data", "LearningHistory.read past the end: IndexError naming file and rows", read_out_of_range)
+api_error("data", "writer: append after close", lambda: _append_after_close(), "after close")
+api_error("data", "LearningHistory of a missing file",
+          lambda: __import__("vintix.data", fromlist=["x"]).LearningHistory(missing("h.h5")).num_steps, "no such file")
+
+
+def _append_after_close() -> object:
+    from vintix.data import LearningHistoryWriter
+
+    writer = LearningHistoryWriter(work() / "writer" / "closed.h5", 3, 2)
+    writer.append(np.zeros(3), np.zeros(2), 0.0, 0)
+    writer.close()
+    return writer.append(np.zeros(3), np.zeros(2), 0.0, 1)
+
+
+def writer_call(**kwargs: object) -> Callable[[], object]:
+    def call() -> object:
+        from vintix.data import LearningHistoryWriter
+
+        arguments = {"obs_dim": 3, "act_dim": 2, **kwargs}
+        rows = arguments.pop("rows", None)
+        with LearningHistoryWriter(work() / "writer" / "h.h5", **arguments) as writer:
+            writer.append(*(rows or (np.zeros((4, 3)), np.zeros((4, 2)), np.zeros(4), np.arange(4))))
+        return writer.path
+
+    return call
+
+
+api_error("data", "writer: NaN observation", writer_call(rows=(np.full((4, 3), np.nan), np.zeros((4, 2)), np.zeros(4),
+                                                              np.arange(4))), "NaN/inf in observation")
+api_error("data", "writer: step_num starting at 3", writer_call(rows=(np.zeros((4, 3)), np.zeros((4, 2)), np.zeros(4),
+                                                                    np.arange(3, 7))), "step_num 3 after -1")
+api_error("data", "writer: obs_dim 0", writer_call(obs_dim=0), "obs_dim")
+api_error("data", "writer: chunk_size 0", writer_call(chunk_size=0), "chunk_size")
+api_error("data", "writer: float step_num", writer_call(rows=(np.zeros((4, 3)), np.zeros((4, 2)), np.zeros(4),
+                                                              np.arange(4.0))), "expected an integer")
+cli_error("data", "a task JSON nested 10^5 deep", lambda: [
+    "data", "validate", damaged_data("deep-json", lambda f: (f / "reach-v3.json").write_text(DEEP_JSON))()],
+    "reach-v3.json")
+
+# The rest of the old list (issue 47, class 8).
+def minari_root() -> None:
+    os.environ["MINARI_DATASETS_PATH"] = str(work() / "minari" / "datasets")  # never the user's own
+
+
+cli_error("data", "export-minari with a dataset id that climbs out of Minari's root", lambda: [
+    "data", "export-minari", clean_data(), "--dataset-id", "../../escaped/x-v0"], "expected [namespace/]name-vN",
+    setup=minari_root,
+    after=lambda: "a folder was made outside Minari's root" if (work() / "escaped").exists() else None)
+# Issue 55, class 8: ids Minari itself refuses are refused before any folder is made.
+for bad_id in ("vintix/reach.v3-v0", "vintix//reach-v0", "vintix/reach v3-v0", "_/reach-v0"):
+    cli_error("data", f"export-minari with the id {bad_id!r}, which Minari refuses", lambda bad_id=bad_id: [
+        "data", "export-minari", clean_data(), "--dataset-id", bad_id], "expected [namespace/]name-vN",
+        setup=minari_root, after=lambda: "a folder was made under Minari's root" if any(
+            (work() / "minari" / "datasets").glob("*/*")) else None)
+
+
+test_bad_input_ends_as_expected = bad_input_test("data")

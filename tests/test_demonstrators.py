@@ -6,6 +6,7 @@ import shutil
 import signal
 import stat
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +14,18 @@ from scipy.stats import spearmanr
 from stable_baselines3.common.callbacks import BaseCallback
 from typer.testing import CliRunner
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    bad_input_test,
+    cli_error,
+    documented,
+    empty_dir,
+    file_at,
+    invoke,
+    not_written,
+    once,
+    work,
+    workspace,
+)
 from vintix.cli import app
 from vintix.collect import CollectionPlan, NoiseSchedule, collect
 from vintix.data import LearningHistory
@@ -533,3 +546,69 @@ def test_a_meta_rl_tasks_goal_aware_expert_trains_under_its_own_name_and_aims_wh
     assert isinstance(inferring, GoalInferringDemonstrator)
     outcomes = history_outcomes(task, inferring, [100, 101], episodes=2)
     assert outcomes.returns.shape == (2, 2) and np.isfinite(outcomes.returns).all()
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+# Demonstrators
+cli_error("demonstrator", "eval an unknown task", ["demonstrator", "eval", "--task", "reech-v3"], "Did you mean")
+
+
+@once
+def weights_with_an_unknown_policy_kwarg() -> Path:
+    """The shipped Hopper weights, their JSON's policy_kwargs given a keyword no SB3 policy takes."""
+    from vintix.demonstrators.trained import shipped_weights_dir
+
+    folder = work() / "weights-odd-kwarg"
+    folder.mkdir()
+    for suffix in ("json", "safetensors"):
+        shutil.copy(shipped_weights_dir() / f"mujoco-hopper.{suffix}", folder)
+    meta = json.loads((folder / "mujoco-hopper.json").read_text())
+    meta["policy_kwargs"]["bogus_width"] = 3
+    (folder / "mujoco-hopper.json").write_text(json.dumps(meta))
+    return folder
+
+
+cli_error("demonstrator", "eval with --weights whose policy_kwargs hold a keyword the policy does not take",
+          lambda: ["demonstrator", "eval", "--task", "Hopper-v5", "--episodes", "1", "--weights",
+                   weights_with_an_unknown_policy_kwarg(), "--out", work() / "scores-odd.csv"], "bogus_width")
+cli_error("demonstrator", "eval a task without weights", ["demonstrator", "eval", "--task", "Humanoid-v5"],
+          "no trained demonstrator")
+cli_error("demonstrator", "eval with 0 episodes", ["demonstrator", "eval", "--task", "reach-v3", "--episodes", "0"],
+          "--episodes")
+cli_error("demonstrator", "eval only Bi-DexHands tasks", lambda: ["demonstrator", "eval", "--task", "Hand-Pen",
+                                                                  "--out", work() / "d.csv"], "IsaacGym",
+          after=not_written(lambda: work() / "d.csv"))
+cli_error("demonstrator", "train a Meta-World task (scripted)", ["demonstrator", "train", "--task", "reach-v3"],
+          "scripted")
+cli_error("demonstrator", "train an unknown task", ["demonstrator", "train", "--task", "reech-v3"], "Did you mean")
+cli_error("demonstrator", "train with 0 timesteps", lambda: ["demonstrator", "train", "--task", "InvertedPendulum-v5",
+                                                            "--timesteps", "0", "--out", work() / "dw"], "--timesteps")
+
+
+def package_table_untouched() -> str | None:
+    from vintix.tasks.scores import scores_path
+
+    before = scores_path().read_bytes()
+    cwd = os.getcwd()
+    os.chdir(work())
+    try:
+        code, output = invoke("demonstrator", "eval", "--task", "reach-v3", "--episodes", "1")
+    finally:
+        os.chdir(cwd)
+    ok = code == 0 and scores_path().read_bytes() == before and (work() / "demonstrator-scores.csv").is_file()
+    return None if ok else f"exit {code}, package table changed: {scores_path().read_bytes() != before}"
+
+
+documented("demonstrator", "eval leaves the package's score table alone", package_table_untouched)
+cli_error("demonstrator", "eval --out under a file (before measuring)", lambda: [
+    "demonstrator", "eval", "--task", "reach-v3", "--episodes", "1", "--out", file_at("demo-file", "x")() / "s.csv"],
+    "is a file, not a directory")
+cli_error("demonstrator", "eval --out a directory", lambda: [
+    "demonstrator", "eval", "--task", "reach-v3", "--episodes", "1", "--out", empty_dir("scores-dir")()],
+    "it is a directory")
+
+
+test_bad_input_ends_as_expected = bad_input_test("demonstrator")

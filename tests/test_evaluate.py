@@ -5,12 +5,33 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
+from collections.abc import Callable
 
+import h5py
 import numpy as np
 import pytest
 from gymnasium.wrappers import RecordEpisodeStatistics
 from typer.testing import CliRunner
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    CHECKPOINTS,
+    DEEP_JSON,
+    RUNS,
+    api_error,
+    bad_input_test,
+    clean_data,
+    cli_error,
+    collected,
+    damaged_checkpoint,
+    empty_dir,
+    file_at,
+    missing,
+    model_checkpoint,
+    not_written,
+    work,
+    workspace,
+)
 from inference_model import one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent
 from vintix.cli import app
@@ -367,3 +388,96 @@ def test_eval_may_hold_a_sampling_heads_noise_for_an_episode_whatever_the_model_
     assert agent.sample_noise == "step" and not np.allclose(held.returns, fresh.returns)
     with pytest.raises(EvalConfigError, match="sample_noise 'run' is unknown"):
         EvalConfig(sample_noise="run")
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+# Evaluation
+EVAL = ["eval", "--tasks", "reach-v3", "--shots", "1", "--seeds", "1"]
+
+
+def without(argv: list[str], option: str) -> list[str]:
+    """`argv` without `option` and its value (a case that gives the option its own value gives it once)."""
+    if option not in argv:
+        return argv
+    at = argv.index(option)
+    return argv[:at] + argv[at + 2:]
+
+
+for option, value, needle in [("--shots", "0", "shots=0"), ("--seeds", "0", "seeds=0"), ("--seeds", "-1", "seeds=-1"),
+                              ("--threads", "0", "--threads"), ("--batch-envs", "0", "batch_envs=0"),
+                              ("--first-seed", "-1", "first_seed=-1"), ("--prompt-steps", "-3", "prompt_steps=-3"),
+                              ("--reference", "bogus", "bogus"), ("--device", "cuda", "no GPU"),
+                              ("--device", "tpu", "tpu"), ("--variation", "viscosity=abc", "NAME=NUMBER"),
+                              ("--variation", "viscosity=0.05", "viscosity"),
+                              ("--variation", "viscosity=-1", "viscosity")]:
+    cli_error("eval", f"{option} {value}", lambda o=option, v=value: [
+        *without(EVAL, o), "--checkpoint", model_checkpoint(), o, v, "--out", work() / f"e-bad{o}{v}"], needle,
+        after=not_written(lambda o=option, v=value: work() / f"e-bad{o}{v}"))
+cli_error("eval", "--checkpoint missing", lambda: [*EVAL, "--checkpoint", missing("ckpt")], "no such checkpoint")
+cli_error("eval", "--checkpoint a file", lambda: [*EVAL, "--checkpoint", file_at("ckpt-file", "x")()],
+          "neither a model checkpoint")
+cli_error("eval", "--out under a file (before the run, not after)", lambda: [
+    *EVAL, "--checkpoint", model_checkpoint(), "--out", file_at("eval-out-file", "x")() / "results"],
+    "is a file, not a directory")
+cli_error("eval", "a shipped model's name this checkout lacks", ["eval", "--checkpoint", "no-such-model", "--tasks",
+                                                                 "Hopper-v5"], "no shipped model of that name")
+
+
+def nan_prompt() -> list[object]:
+    root = work() / "prompt-nan"
+    if not root.exists():
+        shutil.copytree(collected(), root)
+        with h5py.File(root / "metaworld" / "reach-v3" / "history-0000.h5", "r+") as f:
+            group = next(iter(f))
+            f[group]["reward"][3] = np.nan
+    return [*EVAL, "--checkpoint", model_checkpoint(), "--prompt-from", root, "--prompt-steps", "10",
+            "--out", work() / "e-nan-prompt"]
+
+
+cli_error("eval", "--prompt-from a history with a NaN reward", nan_prompt, "NaN")
+cli_error("eval", "--checkpoint an empty folder", lambda: [*EVAL, "--checkpoint", empty_dir("empty3")()],
+          "neither a model checkpoint")
+for damage, needle in [("truncated-weights", "truncated or damaged"), ("garbage-json", "not valid JSON"),
+                       ("json-missing-keys", "missing keys"), ("nan-weights", "NaN/inf"),
+                       ("no-weights", "model.safetensors is not"), ("future-format", "checkpoint format 99"),
+                       ("groups-malformed", "does not describe a model"), ("config-text-heads", "n_heads must be int"),
+                       ("weights-of-another-model", "does not fit the model")]:
+    cli_error("eval", f"checkpoint: {damage}", lambda d=damage: [*EVAL, "--checkpoint", CHECKPOINTS[d](), "--out",
+                                                                 work() / "e-ckpt"], needle)
+cli_error("eval", "a run whose newest checkpoint is truncated", lambda: [
+    *EVAL, "--checkpoint", RUNS["truncated-weights-eval"](), "--out", work() / "e-run"], "newest intact checkpoint is",
+    after=not_written(lambda: work() / "e-run"))
+cli_error("eval", "unknown task", lambda: ["eval", "--checkpoint", model_checkpoint(), "--tasks", "reech-v3"],
+          "Did you mean")
+cli_error("eval", "task of a group the checkpoint lacks", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "industrial-benchmark-35-v1"], "no encoder")
+cli_error("eval", "empty --tasks", lambda: ["eval", "--checkpoint", model_checkpoint(), "--tasks", ","], "no tasks")
+cli_error("eval", "--prompt-from missing", lambda: [*EVAL, "--checkpoint", model_checkpoint(), "--prompt-from",
+                                                    missing("data")], "not a directory")
+cli_error("eval", "--prompt-from a dataset without the task", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "push-v3", "--shots", "1", "--seeds", "1",
+    "--prompt-from", clean_data()], "no learning history of push-v3")
+cli_error("eval", "--prompt-steps longer than the window", lambda: [
+    *EVAL, "--checkpoint", model_checkpoint(), "--prompt-from", collected(), "--prompt-steps", "100"], "window")
+cli_error("eval", "--prompt-from with more seeds than histories", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "3",
+    "--prompt-from", collected(), "--prompt-steps", "10"], "histories")
+
+
+def eval_config(**fields: object) -> Callable[[], object]:
+    from vintix.evaluate import EvalConfig
+
+    return lambda: EvalConfig(**fields)
+
+
+api_error("eval", "EvalConfig(shots=0)", eval_config(shots=0), "shots=0")
+api_error("eval", "EvalConfig(seeds='3')", eval_config(seeds="3"), "seeds must be int")
+cli_error("eval", "a checkpoint whose config.json is nested 10^5 deep", lambda: [
+    "eval", "--checkpoint", damaged_checkpoint("deep-json", lambda c: (c / "config.json").write_text(DEEP_JSON))(),
+    "--tasks", "reach-v3"], "config.json")
+
+
+test_bad_input_ends_as_expected = bad_input_test("eval")

@@ -3,6 +3,15 @@ splits and names."""
 
 import pytest
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    api_error,
+    bad_input_test,
+    cli_error,
+    documented,
+    file_at,
+    work,
+    workspace,
+)
 from vintix.errors import UnknownTaskError
 from vintix.tasks import get_task, list_tasks, make_env, resolve_tasks
 
@@ -87,3 +96,33 @@ def test_resolve_tasks_expands_domains_and_splits_without_repeats():
     names = [t.name for t in resolve_tasks(["industrial_benchmark", "test", "Hopper-v4", "Hopper-v5"])]
     assert len(names) == len(set(names))
     assert "industrial-benchmark-0-v1" in names and "door-lock-v3" in names and "Hopper-v5" in names
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+cli_error("tasks", "unknown domain", ["tasks", "--domain", "mujuco"], "unknown domain 'mujuco'")
+cli_error("tasks", "unknown split", ["tasks", "--split", "validation"], "unknown split")
+cli_error("tasks", "unknown group", ["tasks", "--group", "nope"], "unknown group")
+cli_error("check-envs", "misspelled task", ["check-envs", "Hoper-v5"], "Did you mean")
+cli_error("check-envs", "zero episodes", ["check-envs", "InvertedPendulum-v5", "--episodes", "0"], "--episodes")
+cli_error("check-envs", "negative seed", ["check-envs", "InvertedPendulum-v5", "--seed", "-1"], "--seed")
+cli_error("check-envs", "only Bi-DexHands tasks (no simulator)", ["check-envs", "Hand-Pen"], "IsaacGym")
+cli_error("check-envs", "--out under a file", lambda: ["check-envs", "InvertedPendulum-v5", "--episodes", "1",
+                                                                         "--out", file_at("a-file", "x")() / "x.csv"],
+          "not a directory")
+
+# Envs and the task registry from Python
+api_error("tasks", "make_env of a Bi-DexHands task", lambda: __import__("vintix").make_env("Hand-Pen"), "IsaacGym")
+api_error("tasks", "make_env with a variation the domain lacks", lambda: __import__("vintix").make_env(
+    "reach-v3", viscosity=0.05), "viscosity")
+api_error("tasks", "make_env with a negative viscosity", lambda: __import__("vintix").make_env(
+    "HalfCheetah-v5", viscosity=-1.0), "viscosity must be >= 0")
+api_error("tasks", "make_env with a NaN gravity scale", lambda: __import__("vintix").make_env(
+    "HalfCheetah-v5", gravity_scale=float("nan")), "gravity_scale")
+documented("tasks", "get_task('Pusher-v4') is Pusher-v5",
+           lambda: None if __import__("vintix").get_task("Pusher-v4").name == "Pusher-v5" else "not the v5 task")
+
+
+test_bad_input_ends_as_expected = bad_input_test("tasks", "check-envs")

@@ -7,12 +7,27 @@ import csv
 import json
 import re
 import shutil
+from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    DEEP_JSON,
+    bad_input_test,
+    cli_error,
+    empty_dir,
+    eval_results,
+    invoke,
+    missing,
+    model_checkpoint,
+    once,
+    work,
+    workspace,
+)
 from inference_model import one_thread, one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent
 from vintix.cli import app
@@ -328,3 +343,75 @@ def test_a_task_measured_by_return_shows_how_much_of_it_the_hidden_goal_decides(
     assert header.endswith("| hidden return |") and row.count("|") == header.count("|")
     assert row.endswith(f"| {read_goal_blind()['Ant-Dir-v5'].hidden_return:.2f} |")
     assert "the most a reward-use gap can show" in "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+# Reports
+cli_error("report", "a missing folder", ["report", missing("results")], "no episodes.csv")
+cli_error("report", "an empty folder", lambda: ["report", empty_dir("empty4")(), "--out", work() / "r0"],
+          "no episodes.csv")
+cli_error("report", "unknown reference table", lambda: ["report", eval_results(), "--reference", "bogus", "--out",
+                                                        work() / "r1"], "bogus")
+cli_error("report", "--plateau-shots 0", lambda: ["report", eval_results(), "--plateau-shots", "0", "--out",
+                                                 work() / "r2"],
+          "--plateau-shots")
+
+
+def garbage_results(kind: str) -> Callable[[], list[object]]:
+    def make() -> list[object]:
+        folder = work() / f"results-{kind}"
+        shutil.copytree(eval_results(), folder, dirs_exist_ok=True)
+        if kind == "garbage-csv":
+            (folder / "episodes.csv").write_text("a,b\n1,2\n")
+        elif kind == "garbage-run-json":
+            (folder / "run.json").write_text("{")
+        elif kind == "text-return":
+            text = (folder / "episodes.csv").read_text().splitlines()
+            header = text[0].split(",")
+            row = text[1].split(",")
+            row[header.index("return")] = "lots"
+            (folder / "episodes.csv").write_text("\n".join([text[0], ",".join(row), *text[2:]]) + "\n")
+        elif kind == "no-rows":
+            (folder / "episodes.csv").write_text((folder / "episodes.csv").read_text().splitlines()[0] + "\n")
+        return ["report", folder, "--out", work() / f"r-{kind}"]
+
+    return make
+
+
+cli_error("report", "episodes.csv of another tool", garbage_results("garbage-csv"), "episodes.csv")
+cli_error("report", "run.json not JSON", garbage_results("garbage-run-json"), "run.json")
+
+
+def deep_run_json() -> list[object]:
+    folder = work() / "results-deep-json"
+    shutil.copytree(eval_results(), folder, dirs_exist_ok=True)
+    (folder / "run.json").write_text(DEEP_JSON)
+    return ["report", folder, "--out", work() / "r-deep-json"]
+
+
+cli_error("report", "run.json nested 10^5 deep", deep_run_json, "run.json")
+cli_error("report", "a return that is text", garbage_results("text-return"), "episodes.csv")
+cli_error("report", "episodes.csv without rows", garbage_results("no-rows"), "no episodes")
+
+
+@once
+def results_relabelled() -> Path:
+    """Results of zero rewards fed back whose run.json was edited to say true ones."""
+    folder = work() / "results-relabelled"
+    code, output = invoke("eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "2", "--seeds",
+                          "1", "--reward-input", "zero", "--out", folder)
+    assert code == 0, output
+    run = json.loads((folder / "run.json").read_text())
+    run["config"]["reward_input"] = "true"
+    (folder / "run.json").write_text(json.dumps(run))
+    return folder
+
+
+cli_error("report", "run.json that contradicts its episodes' reward_input column", lambda: [
+    "report", results_relabelled(), "--out", work() / "report-relabelled"], "mixes runs fed different rewards")
+
+
+test_bad_input_ends_as_expected = bad_input_test("report")

@@ -13,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -22,6 +23,31 @@ import torch
 from safetensors.torch import load_file
 from typer.testing import CliRunner
 
+from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
+    DAMAGE_NAMES,
+    DATA,
+    QUICK_TRAIN,
+    RUNS,
+    api_error,
+    bad_input_test,
+    clean_data,
+    cli_error,
+    damaged_release,
+    documented,
+    empty_dir,
+    file_at,
+    ib7_data,
+    invoke,
+    missing,
+    no_fraction_data,
+    not_written,
+    pusher_v4_data,
+    straight_and_killed_runs,
+    trained_run,
+    unknown_task_data,
+    work,
+    workspace,
+)
 from conftest import fill_up
 from vintix.agent import Agent
 from vintix.atomic import folder_lock
@@ -646,3 +672,237 @@ def test_a_disk_that_fills_up_mid_training_ends_it_with_the_last_checkpoint_inta
     ballast[0].unlink()
     Trainer(config).run()
     assert [p.name for p in list_checkpoints(out)] == ["step-00000002", "step-00000004", "step-00000006"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
+# tests/bad_inputs.py)
+
+for setting, needle in [("max_steps=abc", "max_steps must be int"), ("lr=-1", "lr=-1"), ("lr=.nan", "lr must be float"),
+                        ("nosuchfield=1", "unknown TrainConfig fields"), ("max_steps", "expects field=value"),
+                        ("tasks=reach-v3", "tasks must be list"), ("model=huge", "model preset 'huge'"),
+                        ("device=tpu", "device must be"), ("window_len=100000", "exceeds the model's context_len"),
+                        ("select_every=3", "multiple of log_every"), ("batch_size=0", "batch_size=0"),
+                        ("beta2=1.5", "beta2=1.5"), ("model_overrides={n_heads: 0}", "n_heads=0"),
+                        ("model_overrides={widht: 3}", "unknown ModelConfig fields"),
+                        ("tasks=[reech-v3]", "Did you mean"), ("expert_tail_fraction=2", "expert_tail_fraction=2.0")]:
+    cli_error("train", f"--set {setting}", lambda s=setting: ["train", "--data", clean_data(),
+                                                            "--out", work() / "t-set", "--set", s], needle,
+              after=not_written(lambda: work() / "t-set"))
+cli_error("train", "--config missing file", lambda: ["train", "--config", missing("c.yaml"), "--data", clean_data()],
+          "neither a model preset")
+cli_error("train", "--config invalid YAML", lambda: ["train", "--config", file_at("bad-config.yaml", "a: [")(),
+                                                     "--data", clean_data()], "not valid YAML")
+cli_error("train", "--config YAML list", lambda: ["train", "--config", file_at("list-config.yaml", "- 1\n- 2\n")(),
+                                                  "--data", clean_data()], "expected a mapping")
+cli_error("train", "--data missing", lambda: ["train", "--data", missing("d"), "--out", work() / "t1", *QUICK_TRAIN],
+          "not a directory")
+cli_error("train", "--data empty", lambda: ["train", "--data", empty_dir("empty2")(), "--out", work() / "t2",
+                                            *QUICK_TRAIN],
+          "no task folder")
+cli_error("train", "--out is a file", lambda: ["train", "--data", clean_data(), "--out", file_at("run-file", "x")(),
+                                               *QUICK_TRAIN], "not a directory")
+cli_error("train", "--set device=cuda without a GPU", lambda: ["train", "--data", clean_data(), "--out", work() / "t3",
+                                                               *QUICK_TRAIN, "--set", "device=cuda"], "no GPU")
+for damage, (_, needle) in DAMAGE_NAMES.items():
+    if needle is None:
+        continue
+    cli_error("train", f"data: {damage}", lambda d=damage: ["train", "--data", DATA[d](), "--out", work() / f"t-{d}",
+                                                           *QUICK_TRAIN], needle,
+              after=not_written(lambda d=damage: work() / f"t-{d}" / "checkpoints"))
+cli_error("train", "data: IB folder with 7 obs dims in JSON and data", lambda: [
+    "train", "--data", ib7_data(), "--out", work() / "t-ib7", *QUICK_TRAIN, "--set", "tasks=[industrial_benchmark]"],
+    "registry's industrial-benchmark-10-v1")
+cli_error("train", "data: task not in the registry", lambda: [
+    "train", "--data", unknown_task_data(), "--out", work() / "t-unknown", *QUICK_TRAIN], "not in the task registry")
+cli_error("train", "data: expert distillation without noise_free_fraction", lambda: [
+    "train", "--data", no_fraction_data(), "--out", work() / "t-ed", *QUICK_TRAIN, "--set", "expert_distillation=true"],
+    "noise_free_fraction")
+cli_error("train", "data: window longer than every history", lambda: [
+    "train", "--data", clean_data(), "--out", work() / "t-window", *QUICK_TRAIN,
+    "--set", "model_overrides={n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, "
+    "mlp_dim: 32, context_len: 1024}", "--set", "window_len=1000"], "no history holds a window",
+    after=not_written(lambda: work() / "t-window"))
+
+
+def trains_anyway(data: str, expect: str) -> Callable[[], str | None]:
+    def check() -> str | None:
+        code, output = invoke("train", "--data", DATA[data](), "--out", work() / f"t-ok-{data}", *QUICK_TRAIN)
+        return None if code == 0 and expect in output else f"exit {code}: {output[-300:]}"
+
+    return check
+
+
+documented("train", "data: a history without checksums (published layout) trains", trains_anyway(
+    "published-layout", "1 tasks"))
+documented("train", "data: a .partial leftover is not a history: training ignores it", trains_anyway(
+    "partial-leftover", "1 tasks"))
+documented("train", "data: a task folder without histories gets no windows", trains_anyway("json-only-task", "1 tasks"))
+cli_error("train", "--set stats_cache_dir under a file", lambda: [
+    "train", "--data", clean_data(), "--out", work() / "t-cache", *QUICK_TRAIN, "--set",
+    f"stats_cache_dir={file_at('cache-file', 'x')() / 'stats'}"], "is a file, not a directory")
+
+
+def corrupted_stats_cache_is_recomputed() -> str | None:
+    cache = work() / "stats-cache"
+    args = ["train", "--data", clean_data(), *QUICK_TRAIN, "--set", f"stats_cache_dir={cache}"]
+    code, output = invoke(*args, "--out", work() / "t-cache1")
+    for entry in cache.glob("*.json"):
+        entry.write_text("{ damaged")
+    code, output = invoke(*args, "--out", work() / "t-cache2")
+    return None if code == 0 and all(json.loads(e.read_text())["validated"] for e in cache.glob("*.json")) else output
+
+
+documented("train", "a damaged statistics cache entry is recomputed", corrupted_stats_cache_is_recomputed)
+
+
+def stats_follow_an_in_place_change() -> str | None:
+    """Issue 55, class 4: a history rewritten in place, same size, its mtime set back, gets new statistics."""
+    from vintix.data import find_tasks
+    from vintix.train.data import cached_obs_stats
+
+    data = work() / "data-in-place"
+    if not data.exists():
+        shutil.copytree(clean_data(), data)
+    task = find_tasks(data)[0]
+    cache = work() / "stats-cache-in-place"
+
+    def stats() -> list[float]:
+        histories = [__import__("vintix.data").data.LearningHistory(p) for p in task.history_paths]
+        return cached_obs_stats(task, histories, cache)[1]
+
+    before = stats()
+    path = task.history_paths[0]
+    times = (path.stat().st_atime_ns, path.stat().st_mtime_ns)
+    with h5py.File(path, "r+") as file:  # the same bytes' worth of rows, other values
+        group = file[sorted(file.keys(), key=lambda k: int(k.split("-")[0]) if "-" in k else -1)[-1]]
+        observations = group["proprio_observation"]
+        observations[...] = observations[...] * 3.0 + 1.0
+    os.utime(path, ns=times)
+    return None if stats() != before else "the cached statistics of the old rows were reused"
+
+
+documented("train", "statistics follow a history changed in place (same size, mtime set back)",
+           stats_follow_an_in_place_change)
+
+
+cli_error("sizes", "train a model of 25,000 layers (it fit memory and built for minutes in silence)", lambda: [
+    "train", "--data", clean_data(), "--out", work() / "t-deep", "--set", "model_overrides={n_layers: 25000}"],
+    "at most 256")
+
+
+def damaged_log_on_resume() -> str | None:
+    """Issue 55, class 6: a run whose log.csv was damaged resumes, keeping the damaged file aside and saying so."""
+    run = work() / "run-damaged-log"
+    if not run.exists():
+        shutil.copytree(trained_run(), run)
+    (run / "log.csv").write_bytes(b"step,loss\n\xff\xfe garbage,1\nnot-a-step,2\n")
+    code, output = invoke("train", "--data", clean_data(), "--out", run, *QUICK_TRAIN, "--set", "max_steps=3",
+                          "--set", "allow_resume_changes=true")
+    if code != 0:
+        return f"exit {code}: {output[-300:]}"
+    return None if "kept as" in output and (run / "log.csv.damaged").is_file() else f"not said: {output[-300:]}"
+
+
+documented("train", "resume with a damaged log.csv: the run goes on, the damaged log kept aside", damaged_log_on_resume)
+
+
+def resume_falls_back(run: str) -> Callable[[], str | None]:
+    def check() -> str | None:
+        out = RUNS[run]()
+        code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN, "--set", "max_steps=3")
+        ok = code == 0 and "step-00000002 is damaged" in output and "resuming from" in output
+        return None if ok else f"exit {code}: {output[-300:]}"
+
+    return check
+
+
+for run in ("truncated-optimizer", "truncated-rng", "garbage-trainer-json", "trainer-json-wrong-step",
+            "truncated-weights", "garbage-model-json"):
+    documented("train", f"resume: newest checkpoint has a {run}: falls back with a note", resume_falls_back(run))
+cli_error("train", "resume: no intact checkpoint", lambda: [
+    "train", "--data", clean_data(), "--out", RUNS["all-damaged"](), *QUICK_TRAIN, "--set", "max_steps=3"],
+          "no intact checkpoint to resume from")
+cli_error("train", "resume into another model config", lambda: [
+    "train", "--data", clean_data(), "--out", trained_run(), *QUICK_TRAIN, "--set",
+    "model_overrides={n_layers: 2, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, "
+    "head_layers: 1, context_len: 64}", "--set", "max_steps=3"], "cannot resume")
+
+
+def partial_checkpoint_ignored() -> str | None:
+    out = RUNS["partial-leftover"]()
+    code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN, "--set", "max_steps=3")
+    left = sorted(p.name for p in (out / "checkpoints").iterdir())
+    ok = code == 0 and "resuming from" in output and left == ["step-00000001", "step-00000002", "step-00000003"]
+    return None if ok else f"exit {code}, checkpoints {left}: {output[-200:]}"
+
+
+documented("train", "resume: a step-N.partial left by kill -9 is ignored, then removed", partial_checkpoint_ignored)
+
+
+def pusher_v4_trains() -> str | None:
+    code, output = invoke("train", "--data", pusher_v4_data(), "--out", work() / "t-pusher", *QUICK_TRAIN,
+                          "--set", "tasks=[Pusher-v4]")
+    return None if code == 0 and "1 tasks" in output else f"exit {code}: {output[-300:]}"
+
+
+documented("train", "the published dataset's Pusher-v4 folder trains (alias of v5)", pusher_v4_trains)
+
+
+def killed_training_resumes_identically() -> str | None:
+    """kill -9 a real `python -m vintix train` after its first checkpoint; the resumed run equals a straight one."""
+    from safetensors.torch import load_file
+
+    # One thread in both runs: the default follows the load average, and another thread count rounds differently.
+    args = ["train", "--data", str(clean_data()), *QUICK_TRAIN, "--set", "max_steps=40", "--set", "checkpoint_every=5",
+            "--set", "log_every=5", "--threads", "1"]
+    straight, killed, code, _ = straight_and_killed_runs(args, "train", "checkpoints/step-00000005")
+    a, b = (load_file(str(run / "checkpoints" / "step-00000040" / "model.safetensors")) for run in (straight, killed))
+    same = all(torch.equal(a[k], b[k]) for k in a)
+    return None if code == 0 and same else f"exit {code}, identical weights: {same}"
+
+
+documented("train", "kill -9 mid-training, then re-run: identical weights", killed_training_resumes_identically)
+
+
+def config_call(**fields: object) -> Callable[[], object]:
+    from vintix.train import TrainConfig
+
+    return lambda: TrainConfig(**fields)
+
+
+api_error("train", "TrainConfig(max_steps='abc')", config_call(max_steps="abc"), "max_steps must be int")
+api_error("train", "TrainConfig(warmup_steps=-1)", config_call(warmup_steps=-1), "warmup_steps=-1")
+api_error("train", "TrainConfig(min_lr_fraction=3)", config_call(min_lr_fraction=3), "min_lr_fraction=3")
+
+
+def nan_loss_stops() -> object:
+    from vintix.train import Trainer, load_config
+
+    config = load_config("tiny", {"data": str(clean_data()), "out": str(work() / "t-nan-loss")},
+                         [s for s in QUICK_TRAIN if s != "--set"] + ["max_steps=4", "checkpoint_every=2"])
+
+    def diverge(model: object, step: int) -> None:
+        with torch.no_grad():
+            model.ln_f.weight[0] = float("nan")  # type: ignore[attr-defined]
+
+    return Trainer(config, callbacks=[(3, diverge)]).run()
+
+
+api_error("train", "a NaN loss mid-run (weights diverged after step 3)", nan_loss_stops,
+          "step 4: the loss or its gradient")
+api_error("train", "TrainConfig(threads=5000)", lambda: __import__("vintix.train").train.TrainConfig(threads=5000),
+          "threads must be 0 (auto) or a number of CPU threads up to 1024")
+cli_error("train", "vintix train --threads -1", ["train", "--threads", "-1"], "--threads")
+
+
+def deep_release(folder: Path) -> None:
+    config = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**config, "transformer_depth": 10**9}))
+
+
+# Sizes (issue 47, class 3): from the config's arithmetic, before a layer is built (10^9 of them never end).
+cli_error("sizes", "import-official of a release of 10^9 layers", damaged_release("deep", deep_release), "at most 256")
+
+
+test_bad_input_ends_as_expected = bad_input_test("train", "sizes")

@@ -78,13 +78,17 @@ def _plan(task: str, settings: dict[str, Any], where: str) -> CollectionPlan:
 def resolved_recipe(name_or_path: str | Path) -> dict[str, Any]:
     """A recipe's settings with its base's underneath (`vintix.configfiles`): what `vintix collect --print-config`
     shows."""
-    return read_layered(recipe_path(name_or_path), shipped_recipe, CollectionError, "recipe")
+    return _read_recipe(recipe_path(name_or_path))
+
+
+def _read_recipe(path: Path) -> dict[str, Any]:
+    return read_layered(path, shipped_recipe, CollectionError, "recipe")
 
 
 def load_recipe(name_or_path: str | Path) -> list[CollectionPlan]:
     """The collection plans of a recipe, one per task, task settings overriding the defaults."""
     path = recipe_path(name_or_path)
-    recipe = resolved_recipe(path)
+    recipe = _read_recipe(path)
     if not isinstance(recipe.get("tasks"), dict) or not recipe["tasks"]:
         raise CollectionError(f"{path}: a recipe needs a non-empty 'tasks:' mapping (and optionally 'defaults:')")
     defaults = recipe.get("defaults") or {}
