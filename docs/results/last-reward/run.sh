@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The last-reward measurement (HOW.md): one dataset, two models (the tiny preset's last_reward, and the paper's
+# The last-reward measurement (README.md here): one dataset, two models (the tiny preset's last_reward, and the paper's
 # token layout), each evaluated on 30 unseen targets with the true and with zero rewards fed back.
 #   docs/results/last-reward/run.sh [WORK_DIR]       (default: /tmp/last-reward; collection and training resume)
 set -euo pipefail

@@ -1,7 +1,7 @@
 """A hidden-target env whose only informative reward is an episode's last: the point on a line must end its
 10-step episodes within 0.1 of a target it never observes, and it is paid -|x - target| at the last step, 0
 before. docs/icrl-your-env.md's env with its dense reward moved to the episode's end (a success bonus, as on
-MountainCar), for the last-reward measurement (HOW.md)."""
+MountainCar), for the last-reward measurement (README.md here)."""
 import gymnasium as gym
 import numpy as np
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Why Reacher-hidden-v5 fades over 40 shots (HOW.md): one model per recipe, Reacher-hidden-v5 alone, the
+# Why Reacher-hidden-v5 fades over 40 shots (README.md here): one model per recipe, Reacher-hidden-v5 alone, the
 # flagship's config (vintix-cpu) for 2,000 steps; each evaluated cold start on 20 unseen targets, 40 shots,
 # with the true and with zero rewards fed back.
 #   docs/results/reacher-hidden-fade/run.sh [WORK_DIR]   (default: /tmp/reacher-hidden-fade; every step resumes)

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A hidden-goal task the model never saw (HOW.md): icrl-suite's config trained on three of its four Meta-World
+# A hidden-goal task the model never saw (README.md here): icrl-suite's config trained on three of its four Meta-World
 # tasks, reach-wall-v3 left out entirely (reach-v3 stays in), on the vintix-cpu collection's histories of them;
 # evaluated cold start on 20 unseen reach-wall goals, 20 shots, with true, zero and shuffled rewards fed back,
 # and on the three tasks it trained on with true rewards.
