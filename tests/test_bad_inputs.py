@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 import vintix
@@ -36,6 +37,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
     workspace,
 )
 from conftest import HANG_GUARD_S, child_env
+from vintix.atomic import MAX_NAME_BYTES, file_name
 
 # ---------------------------------------------------------------------------------------------
 # Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
@@ -568,3 +570,38 @@ cli_error("cli", "python -m vintix with a bad option", ["tasks", "--domian", "mu
 
 
 test_bad_input_ends_as_expected = bad_input_test("outputs", "values", "trust", "names", "plugins", "cli", "bench")
+
+
+# Names from files are never paths: a task, label, group or dataset id that a file supplies becomes one file name.
+@pytest.mark.parametrize("name", ["../../escaped", "/tmp/absolute", "nul\x00in-it", "x" * 300, "..", ".hidden",
+                                  "tab\tand\nnewline", "ünïcödé"])
+def test_names_from_files_are_never_paths(name):
+    made = file_name(name)
+    assert made and "/" not in made and "\x00" not in made and made not in (".", "..") and not made.startswith(".")
+    assert len(made.encode()) <= MAX_NAME_BYTES and made.isascii() and made.isprintable()
+    assert file_name(name + "!") != made  # two names, two files
+    assert file_name("reach-v3") == "reach-v3" and file_name("HalfCheetah-Vel-v5") == "HalfCheetah-Vel-v5"
+
+
+def test_names_from_files_are_never_paths_data_plot_and_collect_write_inside_their_folder(tmp_path, monkeypatch):
+    """A task of your own whose name climbs out (a tasks file or a dataset's task JSON names it): its histories and
+    its figure stay under the folder the command was given."""
+    from vintix.tasks import registry
+
+    monkeypatch.setattr(registry, "_custom", dict(registry._custom))
+    vintix.register_task("../../../escaped-v0", env_id="Pendulum-v1", obs_dim=3, act_dim=1, episode_length=50,
+                         reference_random=-400, reference_expert=-50)
+    (tmp_path / "run").mkdir()
+    monkeypatch.chdir(tmp_path / "run")
+    (tmp_path / "run" / "still.py").write_text(
+        "import numpy as np\n\n\nclass Still:\n    def __init__(self, task):\n        pass\n\n"
+        "    def act(self, observations, envs):\n        return np.zeros((len(envs), 1), np.float32)\n")
+    monkeypatch.syspath_prepend(str(tmp_path / "run"))
+    recipe = tmp_path / "run" / "recipe.yaml"
+    recipe.write_text('tasks:\n  "../../../escaped-v0": {histories: 1, steps: 100, demonstrator: "still:Still"}\n')
+    code, output = invoke("collect", "--recipe", recipe, "--out", "data")
+    assert code == 0, output
+    code, output = invoke("data", "plot", "data", "--out", "figures")
+    assert code == 0, output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run", "user-cache"]  # run/data/custom/../../.. is tmp_path
+    assert len(list((tmp_path / "run" / "figures").rglob("*.png"))) == 2  # the task's and its domain's

@@ -30,6 +30,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
 )
 from inference_model import one_thread, one_torch_thread, tiny_model  # noqa: F401  (autouse fixture)
 from vintix.agent import Agent
+from vintix.atomic import file_name
 from vintix.cli import app
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.evaluate import EvalConfig, best_k_plateau, converged_gap_with_ci, evaluate, iqm_with_ci
@@ -58,7 +59,8 @@ def test_report_has_every_figure_and_the_aggregates_of_the_episodes(two_results,
                                       "--reference", "paper"])
     assert result.exit_code == 0, result.output
     figures = tmp_path / "report" / "figures"
-    expected = {"domain-metaworld_train.png", "domain-mujoco_train.png", "first-vs-converged.png",
+    expected = {f"domain-{file_name('metaworld train')}.png", f"domain-{file_name('mujoco train')}.png",
+                "first-vs-converged.png",
                 "tasks/reach-v3.png", "tasks/InvertedPendulum-v5.png"}
     assert {str(p.relative_to(figures)) for p in figures.rglob("*.png")} == expected
     assert all((figures / name).read_bytes()[:4] == b"\x89PNG" for name in expected)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import fcntl
 import glob
+import hashlib
 import os
 import re
 import shutil
@@ -23,6 +24,23 @@ if TYPE_CHECKING:
 PARTIAL_SUFFIX = ".partial"
 _UMASK = os.umask(0o022)
 os.umask(_UMASK)  # read once: the process's umask, which files written atomically get as plain open() would give
+
+
+MAX_NAME_BYTES = 160
+"""The longest file name `file_name` makes (file systems allow 255 bytes; room for a suffix and a partial mark)."""
+
+
+def file_name(name: str) -> str:
+    """`name`, as a file supplied it (a task, a label, a group, a dataset id), turned into one file name that is never
+    a path: every character but ASCII letters, digits, '-', '_' and '.' (after the first) becomes '_', so no '/',
+    '..', NUL or control character gets through; a name that had to change, or was longer than `MAX_NAME_BYTES`,
+    ends with a hash of the whole, so that two names never share a file."""
+    safe = "".join(c if (c.isascii() and c.isalnum()) or c in "-_" or (c == "." and i) else "_"
+                   for i, c in enumerate(name)) or "_"
+    if safe == name and len(name.encode()) <= MAX_NAME_BYTES:
+        return name
+    digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:10]
+    return f"{safe[:MAX_NAME_BYTES - len(digest) - 1]}-{digest}"
 
 
 def new_partial_file(path: str | os.PathLike[str]) -> Path:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, file_name
 from vintix.data.layout import (
     ACTION_TYPES,
     PathLike,
@@ -21,8 +21,9 @@ _REQUIRED_KEYS = ("task_name", "observation_shape", "action_dim", "action_type")
 
 
 def task_directory(root: PathLike, domain: str, task_dir_name: str) -> Path:
-    """``<root>/<domain>/<task_dir_name>``: where a task's JSON and histories live."""
-    return Path(root) / domain / task_dir_name
+    """``<root>/<domain>/<task_dir_name>``: where a task's JSON and histories live. A task of your own is named by a
+    file (a tasks file, a task JSON), so both names go through `vintix.atomic.file_name`: never a path out of root."""
+    return Path(root) / file_name(domain) / file_name(task_dir_name)
 
 
 def metadata_path(task_dir: PathLike) -> Path:

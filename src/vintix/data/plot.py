@@ -28,7 +28,7 @@ import numpy as np
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
 from scipy.stats import spearmanr, trim_mean
 
-from vintix.atomic import atomic_path
+from vintix.atomic import atomic_path, file_name
 from vintix.data.discovery import find_tasks
 from vintix.data.layout import PathLike
 from vintix.data.reader import LearningHistory
@@ -118,9 +118,10 @@ def plot_dataset(root: PathLike, out: PathLike, bins: int = 50, reference_table:
     written = []
     for domain, tasks in sorted(by_domain.items()):
         for name, curves in sorted(tasks.items()):
-            written.append(_plot({name: curves}, name, out / domain / f"{name}.png"))
+            # A task's name comes from its JSON: as a file name, never a path out of --out.
+            written.append(_plot({name: curves}, name, out / file_name(domain) / f"{file_name(name)}.png"))
         written.append(_plot({domain: np.concatenate(list(tasks.values()))},
-                             f"{domain}: {len(tasks)} tasks", out / f"{domain}.png"))
+                             f"{domain}: {len(tasks)} tasks", out / f"{file_name(domain)}.png"))
     return written, skipped
 
 

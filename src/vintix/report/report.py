@@ -30,7 +30,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
 from matplotlib.ticker import MaxNLocator
 
-from vintix.atomic import atomic_path, atomic_write_text, check_output_kind, folder_lock
+from vintix.atomic import atomic_path, atomic_write_text, check_output_kind, file_name, folder_lock
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError, json_loads
 from vintix.evaluate.config import PLATEAU_SHOTS
@@ -244,10 +244,6 @@ def plot_first_vs_converged(rows: list[tuple[str, str, float, float, float | Non
     axis.set(ylabel="normalized score (mean over runs)", title="first shot vs converged")
     axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return _save(figure, path)
-
-
-def _slug(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
 def _ci(point: float, low: float, high: float) -> str:
@@ -507,14 +503,14 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
             cells += [_ci(*curves[r.label][0][0]), _ci(*iqm_with_ci(plateaus))]
             if with_success:
                 cells += _success_cells(r, variants, plateau_shots)
-        plot_curves(curves, f"{domain}: normalized score vs shot", figures / f"domain-{_slug(domain)}.png", "IQM")
+        plot_curves(curves, f"{domain}: normalized score vs shot", figures / f"domain-{file_name(domain)}.png", "IQM")
         if model_card:
             iqm = MODEL_CARD_DOMAIN_IQM.get(domain.removesuffix(" train"))  # the card's IQMs are of training tasks
             cells.append("—" if iqm is None else f"{iqm:.2f}")
         lines.append(f"| {domain} | " + " | ".join(cells) + " |")
     lines.append("")
     for domain in domains:
-        lines.append(f"![{domain}](figures/domain-{_slug(domain)}.png)")
+        lines.append(f"![{domain}](figures/domain-{file_name(domain)}.png)")
 
     # The goal-blind expert's success (demonstrators/goal_blind.csv) beside shot 1 and converged: what a
     # model reaches without reading a single reward; and, for tasks measured by return (the meta-RL ones), the
@@ -555,7 +551,7 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
                 hidden = hidden_returns.get(r.tasks[variant])
                 cells.append("—" if hidden is None else f"{hidden:.2f}")
             lines.append("| " + " | ".join(cells) + " |")
-        plot_curves(curves, variant, figures / "tasks" / f"{_slug(variant)}.png", "mean")
+        plot_curves(curves, variant, figures / "tasks" / f"{file_name(variant)}.png", "mean")
     if hidden_returns:
         lines.append("\n*hidden return*: the goal-aware expert's return aimed at the true goal minus aimed blind, over "
                      "its return minus a random policy's (`vintix demonstrator goal-blind`): the score only the hidden "
@@ -563,7 +559,7 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
     longest = max(scores.shape[1] for r in results for scores in r.scores.values())
     plot_first_vs_converged(bars, min(plateau_shots, longest), figures / "first-vs-converged.png")
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
-    lines += [f"![{v}](figures/tasks/{_slug(v)}.png)" for v in sorted({v for r in results for v in r.scores})]
+    lines += [f"![{v}](figures/tasks/{file_name(v)}.png)" for v in sorted({v for r in results for v in r.scores})]
     ablations, unmatched = reward_ablations(results)
     gaps: list[str] = []
     notes += unmatched

@@ -27,7 +27,7 @@ from typing import Literal
 import numpy as np
 import torch
 
-from vintix.atomic import atomic_write_text
+from vintix.atomic import atomic_write_text, file_name
 from vintix.data.discovery import TaskData, find_tasks
 from vintix.data.layout import dims_text
 from vintix.data.reader import LearningHistory
@@ -128,7 +128,7 @@ def cached_obs_stats(task: TaskData, histories: Sequence[LearningHistory], cache
     non-finite statistics is recomputed, never trusted.
     """
     key = hashlib.sha1(str(task.task_dir.resolve()).encode()).hexdigest()[:16]
-    path = cache_dir / f"{task.task_name}-{key}.json"
+    path = cache_dir / f"{file_name(task.task_name)}-{key}.json"
     fingerprint = content_fingerprint(task.history_paths)
     if path.is_file():
         try:
