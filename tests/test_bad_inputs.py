@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from typer.testing import CliRunner
 
 import vintix
 from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
@@ -30,6 +31,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
     eval_results,
     invoke,
     model_checkpoint,
+    not_written,
     once,
     release_snapshot,
     trained_run,
@@ -38,6 +40,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
 )
 from conftest import HANG_GUARD_S, child_env
 from vintix.atomic import MAX_NAME_BYTES, file_name
+from vintix.cli import app
 
 # ---------------------------------------------------------------------------------------------
 # Bad input: one case each, a clear error or the documented behaviour (framework and shared fixtures:
@@ -373,6 +376,38 @@ cli_error("values", "eval --prompt-steps 0 (it used to mean 512)", lambda: [
     "--prompt-steps", "0"], "prompt_steps=0")
 cli_error("values", "report --plateau-shots beyond the run's shots", lambda: [
     "report", eval_results(), "--plateau-shots", "50", "--out", work() / "r-plateau"], "more shots than the runs have")
+
+# Options mean one thing (issue 71, class 7).
+cli_error("values", "train --set of one field twice", lambda: [
+    "train", "--data", clean_data(), "--out", work() / "set-twice", "--set", "max_steps=1", "--set", "max_steps=2"],
+    "--set max_steps given more than once", after=not_written(lambda: work() / "set-twice"))
+cli_error("values", "train --set init_from= (empty: it trained from scratch without a word)", lambda: [
+    "train", "--data", clean_data(), "--out", work() / "set-empty", "--set", "init_from="],
+    "gives init_from no value", after=not_written(lambda: work() / "set-empty"))
+cli_error("values", "report --gap-shots with one results folder", lambda: [
+    "report", eval_results(), "--gap-shots", "1-2", "--out", work() / "r-gap-one"], "give both folders",
+    after=not_written(lambda: work() / "r-gap-one"))
+
+
+def threads_beyond_the_cores_are_capped() -> str | None:
+    code, output = invoke("eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1",
+                          "--seeds", "1", "--threads", "1024", "--out", work() / "threads-1024")
+    cores = len(os.sched_getaffinity(0))
+    if code != 0 or f"--threads 1024 is more than the {cores} cores this process may use: using {cores}" not in output:
+        return f"exit {code}: {output[-300:]}"
+    return None
+
+
+def escape_codes_from_a_name_are_printed_escaped() -> str | None:
+    result = CliRunner().invoke(app, ["eval", "--checkpoint", str(model_checkpoint()), "--tasks", "\x1b[2Jreach-v3"])
+    if result.exit_code == 0 or "\x1b" in result.output or "\\x1b[2Jreach-v3" not in result.output:
+        return f"exit {result.exit_code}: {result.output!r}"
+    return None
+
+
+documented("values", "--threads 1024 runs on the machine's cores, with a note", threads_beyond_the_cores_are_capped)
+documented("values", "an escape code in a name is printed as \\x1b, never sent to the terminal",
+           escape_codes_from_a_name_are_printed_escaped)
 
 
 def lr_in_the_docs_spelling() -> str | None:

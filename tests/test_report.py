@@ -417,3 +417,19 @@ cli_error("report", "run.json that contradicts its episodes' reward_input column
 
 
 test_bad_input_ends_as_expected = bad_input_test("report")
+
+
+def test_options_mean_one_thing_a_label_from_a_file_is_literal_markdown_in_the_report(two_results, tmp_path):
+    folder = tmp_path / "ad"
+    shutil.copytree(two_results / "ad", folder)
+    run = json.loads((folder / "run.json").read_text())
+    run["label"] = "<img src=x onerror=alert(1)>\n# Fake heading | extra cell [link](http://x) \x1b[31m"
+    (folder / "run.json").write_text(json.dumps(run))
+    result = CliRunner().invoke(app, ["report", str(folder), "--out", str(tmp_path / "report")])
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert not re.search(r"(?<!\\)<img|(?<!\\)\]\(http|\x1b", report)  # no tag, link or escape code
+    assert not [line for line in report.splitlines() if line.startswith("# Fake")]
+    row = next(line for line in report.splitlines() if "Fake heading" in line)
+    header = next(line for line in report.splitlines() if line.startswith("| label |"))
+    assert row.count(" | ") == header.count(" | ") and "\\| extra cell" in row  # the | stays inside its cell

@@ -22,7 +22,7 @@ from tqdm import tqdm
 from typer.core import TyperGroup
 
 from vintix.atomic import atomic_write_text, check_output_path
-from vintix.errors import VintixError, json_loads
+from vintix.errors import VintixError, json_loads, printable
 from vintix.evaluate.config import (
     ML1_ADAPTATION_SHOTS,
     ML1_SCORED_SHOTS,
@@ -30,7 +30,7 @@ from vintix.evaluate.config import (
     PLATEAU_SHOTS,
     EvalConfig,
 )
-from vintix.fields import MAX_THREADS, field_help
+from vintix.fields import MAX_THREADS, capped_threads, field_help
 from vintix.tasks import ReferenceScore, TaskSpec, find_task, list_tasks, resolve_tasks
 
 if TYPE_CHECKING:  # the CLI imports heavy modules inside its commands, so that --help stays fast
@@ -119,7 +119,11 @@ def _use_threads(threads: int | None) -> None:
     if threads is not None:
         import torch
 
-        torch.set_num_threads(threads)
+        torch.set_num_threads(capped_threads(threads, _note))
+
+
+def _note(text: str) -> None:
+    console.print(f"[yellow]note:[/yellow] {escape(printable(text))}", highlight=False)
 
 
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns, and its lines of
@@ -142,8 +146,9 @@ def _fail(error: Exception) -> typer.Exit:
     message = str(error)
     if isinstance(error, OSError) and error.errno in _OS_ERROR_FIXES:
         message += f"; {_OS_ERROR_FIXES[error.errno]}"
-    # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup.
-    console.print(f"[red]error:[/red] {escape(message)}")
+    # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup; printable: text
+    # that a file supplied (a task name, a lock's holder) must not send escape codes to the terminal.
+    console.print(f"[red]error:[/red] {escape(printable(message))}")
     return typer.Exit(code=2)
 
 
@@ -1185,7 +1190,7 @@ def eval_command(
     from vintix.evaluate import evaluate, iqm, ml1_success, parse_variation, shot_curves, shots_to_show, summarize
     from vintix.tasks.scores import check_table
 
-    torch.set_num_threads(threads)
+    torch.set_num_threads(capped_threads(threads, _note))
     shots = shots if shots is not None else ML1_SHOTS if ml1 else EvalConfig.shots
     try:
         check_table(reference)  # summarize() would otherwise meet it only after the whole run
@@ -1201,7 +1206,7 @@ def eval_command(
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     for note in notes:
-        console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+        _note(note)
     if reward_input != "true":
         console.print(f"rewards fed back to the model: {reward_input}; scores and success from the true returns")
     written = f"{len(rows)} episodes to {out / 'episodes.csv'} and the run's settings to {out / 'run.json'}"
@@ -1304,7 +1309,7 @@ def report_command(
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     for note in notes:
-        console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+        _note(note)
     for gap in gaps:
         console.print(f"reward-use gap: {gap}", highlight=False, soft_wrap=True)
     figures = sorted((out / "figures").rglob("*.png"))

@@ -89,3 +89,10 @@ def json_loads(text: str) -> Any:
         return json.loads(text)
     except RecursionError:
         raise json.JSONDecodeError("nested too deeply to read", text[:100], 0) from None
+
+
+def printable(text: str) -> str:
+    """`text` with every control character but line breaks and tabs written as an escape (``\\x1b``): what a file
+    supplied (a task name, a label, a lock's note) is printed as it is, and never moves a terminal's cursor or
+    colours it."""
+    return "".join(c if c.isprintable() or c in "\n\t" else ascii(c)[1:-1] for c in text)

@@ -16,6 +16,7 @@ import math
 import os
 import types
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -126,3 +127,18 @@ def field_help(module: str, cls: str, field: str) -> str:
     if field not in docs:
         raise LookupError(f"{module}.{cls}.{field} has no docstring to serve as its option's help")
     return docs[field]
+
+
+def available_cores() -> int:
+    """The CPU cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def capped_threads(requested: int, note: Callable[[str], object]) -> int:
+    """`requested` torch threads, or the cores this process may use where it asks for more (with a `note`): threads
+    beyond the cores only slow torch down, and each brings its own buffers (1,024 of them ran out of 8 GB)."""
+    cores = available_cores()
+    if requested <= cores:
+        return requested
+    note(f"--threads {requested} is more than the {cores} cores this process may use: using {cores}")
+    return cores

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -246,6 +247,22 @@ def plot_first_vs_converged(rows: list[tuple[str, str, float, float, float | Non
     return _save(figure, path)
 
 
+_MARKDOWN_SPECIAL = re.compile(r"([\\`*_\[\]<>#|~&])")
+
+
+def markdown_text(text: str) -> str:
+    """Text that a file supplied (a label, a task or domain name, a path) as literal Markdown: each character that
+    Markdown or HTML reads (a heading's #, a cell's |, a tag's <, a link's [, emphasis) backslash-escaped, every line
+    break and control character a space, so that report.md shows it as written and nothing else."""
+    return _MARKDOWN_SPECIAL.sub(r"\\\1", " ".join("".join(c if c.isprintable() else " " for c in text).split()))
+
+
+def markdown_code(text: str) -> str:
+    """A path or name as a code span, where nothing in it can end the span or the table cell (else `markdown_text`)."""
+    plain = text.isprintable() and not any(c in text for c in "`|")
+    return f"`{text}`" if plain else markdown_text(text)
+
+
 def _ci(point: float, low: float, high: float) -> str:
     return f"{point:.2f} [{low:.2f}, {high:.2f}]"
 
@@ -369,20 +386,22 @@ def _gap_tables(pairs: list[tuple[Results, Results]], other_column: str, other_c
         for domain in sorted({first.domains[v] for v in common}):
             variants = [v for v in common if first.domains[v] == domain]
             cells = _gap_cells(first, other, variants, k, same_window, shots)
-            domain_lines.append(f"| {domain} | {first.label} | {other_cell(other)} | " + " | ".join(cells) + " |")
+            domain_lines.append(f"| {markdown_text(domain)} | {markdown_text(first.label)} | {other_cell(other)} | "
+                                + " | ".join(cells) + " |")
             if summary is not None:
                 _, window, score, success = cells
                 summary.append(f"{first.label}, {domain}: true − {other_cell(other)} rewards = {score} score"
                                + (f", {success} success" if success != "—" else "") + f" (shots {window})")
         for variant in common:
-            task_lines.append(f"| {variant} | {first.label} | {other_cell(other)} | "
+            task_lines.append(f"| {markdown_text(variant)} | {markdown_text(first.label)} | {other_cell(other)} | "
                               + " | ".join(_gap_cells(first, other, [variant], k, same_window, shots)) + " |")
     return ["### Per domain\n"] + domain_lines + ["\n### Per task\n"] + task_lines
 
 
 def _fed_instead(other: Results) -> str:
     """What an ablated folder was fed, and its label where the label does not already say it."""
-    return other.reward_input if other.reward_input in other.label else f"{other.reward_input}: {other.label}"
+    label = markdown_text(other.label)
+    return other.reward_input if other.reward_input in other.label else f"{other.reward_input}: {label}"
 
 
 def reward_gap_section(pairs: list[tuple[Results, Results]], table: str, k: int,
@@ -415,7 +434,8 @@ def model_comparison_section(pairs: list[tuple[Results, Results]], table: str, k
              f"Δ = converged(first) − converged(other), *converged* the best {k}-shot plateau of a task's mean "
              "curve; a domain's Δ is the mean of its tasks' Δ; CIs as for the reward-use gap, runs paired by "
              "seed when both folders ran the same seeds.\n"]
-    return lines + _gap_tables(pairs, "compared with", lambda other: other.label, table, k, same_window=False)
+    return lines + _gap_tables(pairs, "compared with", lambda other: markdown_text(other.label), table, k,
+                               same_window=False)
 
 
 class WrittenReport(NamedTuple):
@@ -439,6 +459,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     if gap_shots is not None and not 1 <= gap_shots[0] <= gap_shots[1]:  # the runs' own length is checked later
         raise VintixError(f"--gap-shots {gap_shots[0]}-{gap_shots[1]}: shots count from 1, first <= last")
+    if gap_shots is not None and len(folders) < 2:
+        raise VintixError("--gap-shots sets the shots of the reward-use gap, which compares a true-reward folder with "
+                          "a zero or shuffled one of the same checkpoint: give both folders")
     check_output_kind(out, "report")
     with folder_lock(out, "vintix report"):  # a second report into `out` is refused, not mixed with this one
         return _write_report(folders, out, table, plateau_shots, model_card, gap_shots)
@@ -475,7 +498,8 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
         config = r.run.get("config", {})
         variation = ", ".join(f"{k}={v}" for k, v in config.get("variation", {}).items()) or "—"
         prompt = config.get("prompt_steps") if config.get("prompt_from") else "cold start"
-        lines.append(f"| {r.label} | `{r.run.get('checkpoint', '')}` | {config.get('shots', '?')} | "
+        lines.append(f"| {markdown_text(r.label)} | {markdown_code(str(r.run.get('checkpoint', '')))} | "
+                     f"{config.get('shots', '?')} | "
                      f"{config.get('seeds', '?')} | {variation} | {prompt} | {r.reward_input} | {len(r.scores)} |")
     goal = {str(protocol) for r in results if (protocol := r.run.get("goal_protocol")) is not None}
     if goal:
@@ -485,7 +509,7 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
     card = model_card_scores() if model_card else {}
     lines += ["\n## Per domain\n",
               f"| domain ({table}-normalized) | "
-              + " | ".join(f"{r.label}: {c}" for r in results for c in per_label)
+              + " | ".join(f"{markdown_text(r.label)}: {c}" for r in results for c in per_label)
               + (" | model card (IQM) |" if model_card else " |"),
               "|---|" + "---|" * (len(per_label) * len(results) + model_card)]
     domains = sorted({d for r in results for d in r.domains.values()})
@@ -507,10 +531,10 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
         if model_card:
             iqm = MODEL_CARD_DOMAIN_IQM.get(domain.removesuffix(" train"))  # the card's IQMs are of training tasks
             cells.append("—" if iqm is None else f"{iqm:.2f}")
-        lines.append(f"| {domain} | " + " | ".join(cells) + " |")
+        lines.append(f"| {markdown_text(domain)} | " + " | ".join(cells) + " |")
     lines.append("")
     for domain in domains:
-        lines.append(f"![{domain}](figures/domain-{file_name(domain)}.png)")
+        lines.append(f"![{markdown_text(domain)}](figures/domain-{file_name(domain)}.png)")
 
     # The goal-blind expert's success (demonstrators/goal_blind.csv) beside shot 1 and converged: what a
     # model reaches without reading a single reward; and, for tasks measured by return (the meta-RL ones), the
@@ -537,7 +561,8 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
             published = get_task(r.tasks[variant]).paper_vintix_normalized
             paper = published.mean if table == "paper" and "[" not in variant and published is not None else None
             bars.append((variant, r.label, float(scores[:, 0].mean()), value, paper))
-            cells = [variant, r.label, str(len(scores)), _ci(*curves[r.label][0][0]), f"{value:.2f}", str(start)]
+            cells = [markdown_text(variant), markdown_text(r.label), str(len(scores)), _ci(*curves[r.label][0][0]),
+                     f"{value:.2f}", str(start)]
             if with_paper:
                 cells.append("—" if paper is None else f"{paper:.2f}")
             if model_card:
@@ -559,7 +584,8 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
     longest = max(scores.shape[1] for r in results for scores in r.scores.values())
     plot_first_vs_converged(bars, min(plateau_shots, longest), figures / "first-vs-converged.png")
     lines += ["\n![first shot vs converged](figures/first-vs-converged.png)\n", "### Curves per task\n"]
-    lines += [f"![{v}](figures/tasks/{file_name(v)}.png)" for v in sorted({v for r in results for v in r.scores})]
+    lines += [f"![{markdown_text(v)}](figures/tasks/{file_name(v)}.png)"
+              for v in sorted({v for r in results for v in r.scores})]
     ablations, unmatched = reward_ablations(results)
     gaps: list[str] = []
     notes += unmatched
@@ -579,7 +605,7 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
     if comparisons:
         lines += model_comparison_section(comparisons, table, plateau_shots)
     if notes:
-        lines += ["\n## Notes\n"] + [f"- {n}" for n in notes]
+        lines += ["\n## Notes\n"] + [f"- {markdown_text(n)}" for n in notes]  # they quote labels and paths
     path = out / "report.md"
     atomic_write_text(path, "\n".join(lines) + "\n")
     return WrittenReport(path, notes, gaps)

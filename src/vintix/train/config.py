@@ -230,6 +230,9 @@ def _parse_override(item: str) -> tuple[str, Any]:
     if "=" not in item:
         raise ConfigError(f"--set expects field=value, got {item!r}")
     key, value = item.split("=", 1)
+    if not value.strip():
+        raise ConfigError(f"--set {item!r} gives {key.strip()} no value; write {key.strip()}=null for none, or leave "
+                          "the --set out for the config's value")
     try:
         return key.strip(), yaml.safe_load(value)
     except yaml.YAMLError as error:  # a tag such as !!python/object, or broken YAML
@@ -265,7 +268,11 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
         fields = read_layered(path, shipped_config, ConfigError, "training config")
     given = {k: v for k, v in (overrides or {}).items() if v is not None}
     fields.update(given)
-    settings_given = dict(_parse_override(item) for item in settings or [])
+    parsed = [_parse_override(item) for item in settings or []]
+    repeated = sorted({key for key, _ in parsed if [k for k, _ in parsed].count(key) > 1})
+    if repeated:
+        raise ConfigError(f"--set {', '.join(repeated)} given more than once; give each field once")
+    settings_given = dict(parsed)
     clashes = [f"--{k} {given[k]} but --set {k}={v}" for k, v in settings_given.items() if k in given and v != given[k]]
     if clashes:
         raise ConfigError(f"{'; '.join(clashes)}: give each value once")

@@ -30,6 +30,7 @@ from tqdm import tqdm
 
 from vintix.atomic import atomic_write_text, check_output_kind, folder_lock
 from vintix.errors import DeviceError, VintixError
+from vintix.fields import available_cores, capped_threads
 from vintix.interrupt import Interrupted, StopRequest, stop_requests
 from vintix.memory import build_within_memory
 from vintix.model.checkpoint import WEIGHTS_FILE, CheckpointError, load_pretrained
@@ -251,8 +252,8 @@ def training_threads(requested: int, world_size: int) -> int:
     least one. A second thread on a core another job keeps busy slows the many small ops of a small model down
     instead of speeding them up."""
     if requested:
-        return requested
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        return capped_threads(requested, print)
+    cores = available_cores()
     busy = busy_cores()
     if busy is None:
         busy = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
