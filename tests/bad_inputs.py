@@ -66,9 +66,17 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
 # A model small enough to train a few steps in a second.
 TINY = ("{n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, head_layers: 1, "
         "context_len: 64}")
-QUICK_TRAIN = ["--set", f"model_overrides={TINY}", "--set", "max_steps=2", "--set", "batch_size=2",
-               "--set", "warmup_steps=1", "--set", "log_every=1", "--set", "checkpoint_every=1",
-               "--set", "tensorboard=false"]
+QUICK = {"model_overrides": TINY, "max_steps": 2, "batch_size": 2, "warmup_steps": 1, "log_every": 1,
+         "checkpoint_every": 1, "tensorboard": "false"}
+
+
+def quick_train(**changes: object) -> list[str]:
+    """--set arguments that train the tiny model a few steps, each field once (a repeated --set is an error);
+    `changes` replace or add fields."""
+    return [arg for key, value in {**QUICK, **changes}.items() for arg in ("--set", f"{key}={value}")]
+
+
+QUICK_TRAIN = quick_train()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -42,6 +42,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
     no_fraction_data,
     not_written,
     pusher_v4_data,
+    quick_train,
     straight_and_killed_runs,
     trained_run,
     unknown_task_data,
@@ -478,7 +479,8 @@ def test_a_stop_signal_saves_the_step_it_ends_and_says_how_to_resume(metaworld_d
 
 
 def test_training_threads_are_the_ones_asked_for_or_the_cores_idle_now(monkeypatch):
-    assert training_threads(3, world_size=1) == 3
+    assert training_threads(1, world_size=1) == 1
+    assert training_threads(4096, world_size=1) == len(os.sched_getaffinity(0))  # no more threads than cores
     cores = len(os.sched_getaffinity(0))
     # Another process busy now (runnable, whether or not it has a core): one core fewer, at least one.
     busy = subprocess.Popen([sys.executable, "-c", "print('spinning', flush=True)\nwhile True: pass"],
@@ -719,9 +721,9 @@ cli_error("train", "data: expert distillation without noise_free_fraction", lamb
     "train", "--data", no_fraction_data(), "--out", work() / "t-ed", *QUICK_TRAIN, "--set", "expert_distillation=true"],
     "noise_free_fraction")
 cli_error("train", "data: window longer than every history", lambda: [
-    "train", "--data", clean_data(), "--out", work() / "t-window", *QUICK_TRAIN,
-    "--set", "model_overrides={n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, "
-    "mlp_dim: 32, context_len: 1024}", "--set", "window_len=1000"], "no history holds a window",
+    "train", "--data", clean_data(), "--out", work() / "t-window", *quick_train(
+        model_overrides="{n_layers: 1, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, "
+                        "context_len: 1024}"), "--set", "window_len=1000"], "no history holds a window",
     after=not_written(lambda: work() / "t-window"))
 
 
@@ -797,7 +799,7 @@ def damaged_log_on_resume() -> str | None:
     if not run.exists():
         shutil.copytree(trained_run(), run)
     (run / "log.csv").write_bytes(b"step,loss\n\xff\xfe garbage,1\nnot-a-step,2\n")
-    code, output = invoke("train", "--data", clean_data(), "--out", run, *QUICK_TRAIN, "--set", "max_steps=3",
+    code, output = invoke("train", "--data", clean_data(), "--out", run, *quick_train(max_steps=3),
                           "--set", "allow_resume_changes=true")
     if code != 0:
         return f"exit {code}: {output[-300:]}"
@@ -810,7 +812,7 @@ documented("train", "resume with a damaged log.csv: the run goes on, the damaged
 def resume_falls_back(run: str) -> Callable[[], str | None]:
     def check() -> str | None:
         out = RUNS[run]()
-        code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN, "--set", "max_steps=3")
+        code, output = invoke("train", "--data", clean_data(), "--out", out, *quick_train(max_steps=3))
         ok = code == 0 and "step-00000002 is damaged" in output and "resuming from" in output
         return None if ok else f"exit {code}: {output[-300:]}"
 
@@ -821,17 +823,17 @@ for run in ("truncated-optimizer", "truncated-rng", "garbage-trainer-json", "tra
             "truncated-weights", "garbage-model-json"):
     documented("train", f"resume: newest checkpoint has a {run}: falls back with a note", resume_falls_back(run))
 cli_error("train", "resume: no intact checkpoint", lambda: [
-    "train", "--data", clean_data(), "--out", RUNS["all-damaged"](), *QUICK_TRAIN, "--set", "max_steps=3"],
+    "train", "--data", clean_data(), "--out", RUNS["all-damaged"](), *quick_train(max_steps=3)],
           "no intact checkpoint to resume from")
 cli_error("train", "resume into another model config", lambda: [
-    "train", "--data", clean_data(), "--out", trained_run(), *QUICK_TRAIN, "--set",
-    "model_overrides={n_layers: 2, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, "
-    "head_layers: 1, context_len: 64}", "--set", "max_steps=3"], "cannot resume")
+    "train", "--data", clean_data(), "--out", trained_run(), *quick_train(
+        model_overrides="{n_layers: 2, n_heads: 2, obs_emb_dim: 15, act_emb_dim: 15, rew_emb_dim: 2, mlp_dim: 32, "
+                        "head_layers: 1, context_len: 64}", max_steps=3)], "cannot resume")
 
 
 def partial_checkpoint_ignored() -> str | None:
     out = RUNS["partial-leftover"]()
-    code, output = invoke("train", "--data", clean_data(), "--out", out, *QUICK_TRAIN, "--set", "max_steps=3")
+    code, output = invoke("train", "--data", clean_data(), "--out", out, *quick_train(max_steps=3))
     left = sorted(p.name for p in (out / "checkpoints").iterdir())
     ok = code == 0 and "resuming from" in output and left == ["step-00000001", "step-00000002", "step-00000003"]
     return None if ok else f"exit {code}, checkpoints {left}: {output[-200:]}"
@@ -854,8 +856,8 @@ def killed_training_resumes_identically() -> str | None:
     from safetensors.torch import load_file
 
     # One thread in both runs: the default follows the load average, and another thread count rounds differently.
-    args = ["train", "--data", str(clean_data()), *QUICK_TRAIN, "--set", "max_steps=40", "--set", "checkpoint_every=5",
-            "--set", "log_every=5", "--threads", "1"]
+    args = ["train", "--data", str(clean_data()), *quick_train(max_steps=40, checkpoint_every=5, log_every=5),
+            "--threads", "1"]
     straight, killed, code, _ = straight_and_killed_runs(args, "train", "checkpoints/step-00000005")
     a, b = (load_file(str(run / "checkpoints" / "step-00000040" / "model.safetensors")) for run in (straight, killed))
     same = all(torch.equal(a[k], b[k]) for k in a)
@@ -880,7 +882,7 @@ def nan_loss_stops() -> object:
     from vintix.train import Trainer, load_config
 
     config = load_config("tiny", {"data": str(clean_data()), "out": str(work() / "t-nan-loss")},
-                         [s for s in QUICK_TRAIN if s != "--set"] + ["max_steps=4", "checkpoint_every=2"])
+                         [s for s in quick_train(max_steps=4, checkpoint_every=2) if s != "--set"])
 
     def diverge(model: object, step: int) -> None:
         with torch.no_grad():
