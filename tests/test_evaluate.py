@@ -479,5 +479,11 @@ cli_error("eval", "a checkpoint whose config.json is nested 10^5 deep", lambda: 
     "eval", "--checkpoint", damaged_checkpoint("deep-json", lambda c: (c / "config.json").write_text(DEEP_JSON))(),
     "--tasks", "reach-v3"], "config.json")
 
+# Provenance (issue 71, class 3): evaluate_shots' rows are one task's, so it takes one task's name.
+for given, needle in [("metaworld", "'metaworld' is 50 tasks"), ("reach-v3,push-v3", "is 2 tasks"),
+                      (["reach-v3"], "give one task's name"), ("reech-v3", "Did you mean")]:
+    api_error("eval", f"evaluate_shots on {given!r}", lambda given=given: __import__("vintix.evaluate").evaluate
+              .evaluate_shots(__import__("vintix").Agent.from_pretrained(model_checkpoint()), given), needle)
+
 
 test_bad_input_ends_as_expected = bad_input_test("eval")

@@ -39,7 +39,7 @@ from vintix.errors import UnknownTaskError, VintixError, json_loads
 from vintix.evaluate.config import ML1_ADAPTATION_SHOTS, ML1_SCORED_SHOTS, PLATEAU_SHOTS, EvalConfig, EvalConfigError
 from vintix.evaluate.summary import best_k_plateau, estimate_with_ci
 from vintix.model.model import Vintix
-from vintix.tasks import TaskSpec, action_space_of, get_task, make_env, select_tasks
+from vintix.tasks import TaskSpec, action_space_of, find_task, get_task, make_env, resolve_tasks, select_tasks
 from vintix.tasks.custom import custom_specs
 from vintix.tasks.metaworld import ML1_SEED, MetaWorldTaskEnv
 from vintix.tasks.registry import has_hidden_goal
@@ -507,7 +507,14 @@ def evaluate_shots(agent: Agent, task: str, shots: int = 10, seeds: int = 5, fir
                    reward_input: str = "true", greedy: bool = False, **settings: Any) -> ShotResults:
     """Play `shots` episodes from an empty context on each of `seeds` envs of `task` (seeds `first_seed`, ...) and
     return every episode's return, success and score: Stable-Baselines3's ``evaluate_policy`` habit, for in-context
-    runs, with the numbers `vintix eval` prints (it is the same run). `settings`: any other `EvalConfig` field."""
+    runs, with the numbers `vintix eval` prints (it is the same run). `settings`: any other `EvalConfig` field.
+    `task` is one task's name: its rows are one task's, so a domain, a split or a list is refused."""
+    if not isinstance(task, str):
+        raise EvalConfigError(f"evaluate_shots plays one task: give one task's name, e.g. 'reach-v3', not {task!r}")
+    if find_task(task) is None:
+        matches = [spec.name for spec in resolve_tasks(task.split(","))]  # a name of nothing: UnknownTaskError
+        raise EvalConfigError(f"evaluate_shots plays one task, and {task!r} is {len(matches)} tasks "
+                              f"({', '.join(matches[:4])}{', ...' if len(matches) > 4 else ''}): give one of them")
     config = EvalConfig(tasks=[task], shots=shots, seeds=seeds, first_seed=first_seed, reward_input=reward_input,
                         greedy=greedy, **settings)
     rows, _ = evaluate(agent, config)
