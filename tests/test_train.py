@@ -788,6 +788,25 @@ documented("train", "statistics follow a history changed in place (same size, mt
            stats_follow_an_in_place_change)
 
 
+def resume_after_an_in_place_change() -> list[object]:
+    """Issue 71, class 3: a run's data changed in place (same size, mtime set back) before it resumes; resume
+    compares the data by the statistics cache's key, so it notices."""
+    data, out = work() / "data-resume-in-place", work() / "t-resume-in-place"
+    shutil.copytree(clean_data(), data)
+    code, output = invoke("train", "--data", data, "--out", out, *QUICK_TRAIN)
+    assert code == 0, output
+    path = sorted((data / "metaworld" / "reach-v3").glob("*.h5"))[0]
+    times = (path.stat().st_atime_ns, path.stat().st_mtime_ns)
+    with h5py.File(path, "r+") as file:
+        file[next(iter(file.keys()))]["reward"][0] += 1.0
+    os.utime(path, ns=times)
+    return ["train", "--data", data, "--out", out, *quick_train(max_steps=3)]
+
+
+cli_error("train", "resume on data changed in place (same size, mtime set back)", resume_after_an_in_place_change,
+          "the files were changed")
+
+
 cli_error("sizes", "train a model of 25,000 layers (it fit memory and built for minutes in silence)", lambda: [
     "train", "--data", clean_data(), "--out", work() / "t-deep", "--set", "model_overrides={n_layers: 25000}"],
     "at most 256")

@@ -20,8 +20,8 @@ from vintix.train.data import (
     WindowDataset,
     check_finite_rows,
     collate_windows,
+    content_fingerprint,
     load_training_data,
-    task_fingerprint,
 )
 
 
@@ -287,7 +287,7 @@ def test_a_cached_entry_from_before_validation_or_with_nan_statistics_is_not_tru
     folder = dataset / "metaworld" / "reach-v3"
     poison(folder / "history-0000.h5", "reward", 3)
     # What an older vintix cached for this very data: no validation mark, or statistics already NaN.
-    entry["fingerprint"] = task_fingerprint(history_paths(folder))
+    entry["fingerprint"] = content_fingerprint(history_paths(folder))
     unvalidated = {k: v for k, v in entry.items() if k != "validated"}
     for stale in (unvalidated, {**entry, "obs_mean": [float("nan")] * 39}):
         cache.write_text(json.dumps(stale))

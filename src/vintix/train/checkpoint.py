@@ -307,7 +307,8 @@ def resume_changes(meta: dict[str, Any], config: dict[str, Any], dataset_fingerp
     changes = [f"{key} (checkpoint {saved[key]!r}, now {value!r})" for key, value in config.items()
                if key not in free and key in saved and saved[key] != value]
     if extra.get("dataset_fingerprint") not in (None, dataset_fingerprint):
-        changes.append(f"the data's histories (checkpoint trained on {extra.get('dataset')}; the files now differ)")
+        changes.append(f"the data's histories (checkpoint trained on {extra.get('dataset')}; the files were changed, "
+                       "added, removed or copied since: the same key as the statistics cache's)")
     return changes
 
 

@@ -7,7 +7,7 @@ state of its own: a resumed run asks for the same indices and gets the same wind
 ``DataLoader`` workers need no coordination, and DDP ranks simply take disjoint indices.
 
 Per-task observation statistics are computed once by streaming over the HDF5 step groups (memory
-stays at one group of rows) and cached under the dataset's fingerprint (file names, sizes, mtimes),
+stays at one group of rows) and cached under the dataset's fingerprint (file names, sizes, times, inodes),
 so a changed history invalidates them. Before a task's statistics are first computed, its histories
 pass the same checks as ``vintix data validate`` (finite values, step numbers, dtypes, dims, block
 checksums): training never accepts a file that validation rejects, and one NaN can no longer turn a
@@ -57,20 +57,17 @@ def default_stats_cache_dir() -> Path:
     return user_cache_dir("norm-stats")
 
 
-def task_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
-    """Name, size and mtime of every history file: any rewritten or added history changes it."""
-    return [[p.name, st.st_size, st.st_mtime_ns] for p, st in _stats(paths)]
-
-
 def _stats(paths: Sequence[Path]) -> list[tuple[Path, os.stat_result]]:
     """Each of `paths`, sorted, with its stat (one system call per file)."""
     return [(p, p.stat()) for p in sorted(paths)]
 
 
 def content_fingerprint(paths: Sequence[Path]) -> list[list[str | int]]:
-    """`task_fingerprint` plus each file's inode and change time (ctime), which every write to it sets and no
-    tool can set back: an in-place change that keeps the size and restores the mtime still alters it (what a
-    statistics cache must not miss), while reading all the bytes of a large dataset to hash them is not paid."""
+    """Name, size, mtime, inode and change time (ctime) of every history file: any rewritten or added history
+    changes it, and so does an in-place change that keeps the size and restores the mtime (ctime is set by every
+    write and no tool can set it back), while reading all the bytes of a large dataset to hash them is not paid.
+    The one key of "this data" for the statistics cache and for resuming a run alike (a copy of the data is
+    another key: its files are new inodes)."""
     return [[p.name, st.st_size, st.st_mtime_ns, st.st_ino, st.st_ctime_ns] for p, st in _stats(paths)]
 
 
@@ -336,7 +333,7 @@ def load_training_data(
         norm = _task_norm(task, spec, histories, cache_dir, normalize_rewards)
         windows.append(TaskWindows(spec.name, spec.group, norm,
                                    [HistoryWindows(h, usable_bounds(h, tail)) for h in histories],
-                                   task_fingerprint(task.history_paths),
+                                   content_fingerprint(task.history_paths),
                                    "demonstrator_action" if relabel else "action"))
     held_out_norms = [_task_norm(task, spec, _histories(task), cache_dir, normalize_rewards) for task, spec in held_out]
     names = [n.task for n in [w.norm for w in windows] + held_out_norms]
