@@ -316,6 +316,66 @@ def results_with_a_fifo() -> Path:
     return folder
 
 
+@once
+def results_with_a_fifo_run_json() -> Path:
+    folder = work() / "results-fifo-run-json"
+    folder.mkdir()
+    os.mkfifo(folder / "run.json")
+    return folder
+
+
+def eval_one_episode(checkpoint: object, out: object, *options: object) -> tuple[int, str]:
+    return invoke("eval", "--checkpoint", checkpoint, "--tasks", "reach-v3", "--shots", "1", "--seeds", "1",
+                  "--out", out, *options)
+
+
+def zero_rewards_into_the_true_ones() -> str | None:
+    """A results folder belongs to one run (issue 71, class 2): the same model fed zeros may not replace its true
+    rewards' results, a re-run of the very same run may."""
+    out = work() / "results-one-run"
+    code, output = eval_one_episode(model_checkpoint(), out)
+    assert code == 0, output
+    code, again = eval_one_episode(model_checkpoint(), out)
+    if code != 0:
+        return f"the same run again was refused: {again[-300:]}"
+    code, output = eval_one_episode(model_checkpoint(), out, "--reward-input", "zero")
+    if code == 0 or not all(words in output for words in ("holds the results of", "true rewards", "zero rewards")):
+        return f"exit {code}: {output[-300:]}"
+    return None
+
+
+def two_models_of_one_name() -> str | None:
+    """Two different models both called `model` (each relative to its working folder), evaluated into one --out:
+    the weights' sha256 tells them apart, so the second is refused."""
+    from safetensors.torch import load_file, save_file
+
+    first, second = work() / "name-a" / "model", work() / "name-b" / "model"
+    shutil.copytree(model_checkpoint(), first)
+    shutil.copytree(model_checkpoint(), second)
+    weights = load_file(str(second / "model.safetensors"))
+    name = sorted(weights)[0]
+    weights[name] = weights[name] + 1.0
+    save_file(weights, str(second / "model.safetensors"), metadata={"format": "pt"})
+    out, cwd = work() / "results-of-model", os.getcwd()
+    try:
+        os.chdir(first.parent)
+        code, output = eval_one_episode("model", out)
+        assert code == 0, output
+        os.chdir(second.parent)
+        code, output = eval_one_episode("model", out)
+    finally:
+        os.chdir(cwd)
+    if code == 0 or "holds the results of 'model'" not in output:
+        return f"exit {code}: {output[-300:]}"
+    return None
+
+
+documented("outputs", "eval with zero rewards into the same model's true-reward results is refused, naming both",
+           zero_rewards_into_the_true_ones)
+documented("outputs", "two models both called `model` into one --out: the second is refused", two_models_of_one_name)
+cli_error("outputs", "eval into a folder whose run.json is a FIFO (it was read before the lock and hung)", lambda: [
+    "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "1", "--out",
+    results_with_a_fifo_run_json()], "a FIFO")
 cli_error("outputs", "eval into a folder whose episodes.csv is a FIFO (a read would hang)", lambda: [
     "eval", "--checkpoint", model_checkpoint(), "--tasks", "reach-v3", "--shots", "1", "--seeds", "1", "--out",
     results_with_a_fifo(), "--overwrite"], "a FIFO")
@@ -638,5 +698,5 @@ def test_names_from_files_are_never_paths_data_plot_and_collect_write_inside_the
     assert code == 0, output
     code, output = invoke("data", "plot", "data", "--out", "figures")
     assert code == 0, output
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["run", "user-cache"]  # run/data/custom/../../.. is tmp_path
+    assert {p.name for p in tmp_path.iterdir()} - {"user-cache"} == {"run"}  # run/data/custom/../../.. is tmp_path
     assert len(list((tmp_path / "run" / "figures").rglob("*.png"))) == 2  # the task's and its domain's

@@ -4,6 +4,7 @@ the episodes, the reward-use gap of a checkpoint fed true and zero rewards, and 
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import re
 import shutil
@@ -223,7 +224,7 @@ def test_results_from_before_the_reward_ablation_read_as_true_rewards(two_result
         writer.writeheader()
         writer.writerows(rows)
     run = json.loads((folder / "run.json").read_text())
-    del run["config"]["reward_input"]
+    del run["config"]["reward_input"], run["episodes_sha256"]  # neither was written then
     (folder / "run.json").write_text(json.dumps(run))
     results, _ = load_results(folder, "paper")
     assert results.reward_input == "true" and set(results.success) == {"reach-v3"}
@@ -263,7 +264,15 @@ def edit_rows(edit):
             writer = csv.DictWriter(f, fieldnames=fields)
             writer.writeheader()
             writer.writerows(edit(rows))
+        rehash(folder)
     return damage
+
+
+def rehash(folder):
+    """run.json's record of the episodes it describes, after a test wrote other rows in their place."""
+    run = json.loads((folder / "run.json").read_text())
+    run["episodes_sha256"] = hashlib.sha256((folder / "episodes.csv").read_bytes()).hexdigest()
+    (folder / "run.json").write_text(json.dumps(run))
 
 
 def set_first(column, value):
@@ -433,3 +442,12 @@ def test_options_mean_one_thing_a_label_from_a_file_is_literal_markdown_in_the_r
     row = next(line for line in report.splitlines() if "Fake heading" in line)
     header = next(line for line in report.splitlines() if line.startswith("| label |"))
     assert row.count(" | ") == header.count(" | ") and "\\| extra cell" in row  # the | stays inside its cell
+
+
+def test_a_results_folder_belongs_to_one_run_episodes_of_one_and_run_json_of_another_are_refused(two_results,
+                                                                                                  tmp_path):
+    mixed = tmp_path / "mixed"
+    shutil.copytree(two_results / "ad", mixed)
+    shutil.copy(two_results / "ad-no-reward" / "run.json", mixed / "run.json")  # another model's settings
+    result = CliRunner().invoke(app, ["report", str(mixed), "--out", str(tmp_path / "report")])
+    assert result.exit_code != 0 and "episodes.csv is not the one run.json describes" in " ".join(result.output.split())

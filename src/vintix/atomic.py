@@ -272,19 +272,19 @@ OUTPUT_KINDS: dict[str, tuple[str, Callable[[Path], bool]]] = {
 
 
 def check_replaceable(folder: str | os.PathLike[str], kind: str, overwrite: bool,
-                      inputs: Sequence[str | os.PathLike[str]] = (), same_output: bool = False) -> None:
+                      inputs: Sequence[str | os.PathLike[str]] = ()) -> None:
     """Raise OutputPathError where writing `kind` (a key of OUTPUT_KINDS) into `folder` would destroy something:
     a folder that is one of the command's own `inputs` (always), a folder holding another kind of output
-    (always: the two would mix), or a non-empty folder (unless `overwrite`, or `same_output`: the command's own
-    earlier output, which a re-run may replace). The one rule every command that writes a model or results
-    follows."""
+    (always: the two would mix), or a non-empty folder (unless `overwrite`; `vintix eval` lets a run replace its own
+    earlier results, `vintix.evaluate.run.check_results_folder`). The one rule every command that writes a model or
+    results follows."""
     folder = Path(folder)
     for source in inputs:
         if Path(source).resolve() == folder.resolve():
             raise OutputPathError(f"{folder} is this command's own input; writing {OUTPUT_KINDS[kind][0]} there would "
                                   "destroy it: choose another output folder")
     check_output_kind(folder, kind)
-    if folder.is_dir() and any(p.name != LOCK_FILE for p in folder.iterdir()) and not (overwrite or same_output):
+    if folder.is_dir() and any(p.name != LOCK_FILE for p in folder.iterdir()) and not overwrite:
         held = next((what for what, holds in OUTPUT_KINDS.values() if holds(folder)), "files")
         raise OutputPathError(f"{folder} already holds {held}; writing {OUTPUT_KINDS[kind][0]} there would replace "
                               "it: choose another output folder, or pass --overwrite")

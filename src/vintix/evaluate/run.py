@@ -16,6 +16,7 @@ rewards drive. Returns, success and normalized scores always come from the env's
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -32,12 +33,13 @@ from tqdm import tqdm
 
 from vintix import cluster
 from vintix.agent import Agent
-from vintix.atomic import atomic_write_text, check_output_path, check_replaceable, folder_lock
+from vintix.atomic import atomic_write_text, check_output_kind, check_output_path, check_replaceable, folder_lock
 from vintix.data.discovery import find_tasks
 from vintix.data.reader import LearningHistory
-from vintix.errors import UnknownTaskError, VintixError, json_loads
+from vintix.errors import OutputPathError, UnknownTaskError, VintixError, json_loads
 from vintix.evaluate.config import ML1_ADAPTATION_SHOTS, ML1_SCORED_SHOTS, PLATEAU_SHOTS, EvalConfig, EvalConfigError
 from vintix.evaluate.summary import best_k_plateau, estimate_with_ci
+from vintix.model.checkpoint import weights_sha256
 from vintix.model.model import Vintix
 from vintix.tasks import TaskSpec, action_space_of, find_task, get_task, make_env, resolve_tasks, select_tasks
 from vintix.tasks.custom import custom_specs
@@ -369,17 +371,52 @@ def write_results(out: Path, rows: list[dict[str, Any]], run: dict[str, Any]) ->
     writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    atomic_write_text(out / EPISODES_FILE, buffer.getvalue())
+    episodes = buffer.getvalue()
+    # The reader checks that the two files belong together: a folder mixing two runs' files is refused.
+    run = {**run, "episodes_sha256": hashlib.sha256(episodes.encode()).hexdigest()}
+    atomic_write_text(out / EPISODES_FILE, episodes)
     atomic_write_text(out / RUN_FILE, json.dumps(run, indent=1, default=str) + "\n")
     return out / EPISODES_FILE, out / RUN_FILE
 
 
-def _results_of(folder: Path) -> str | None:
-    """The checkpoint whose results `folder` holds (its run.json), or None."""
+def run_identity(checkpoint: str, weights_sha256: str, config: EvalConfig) -> dict[str, Any]:
+    """What makes results one run's: the checkpoint (its name, and the sha256 of its weights, since two models may
+    share a name), the rewards fed back and the tasks. A results folder holds one run (`check_results_folder`)."""
+    return {"checkpoint": checkpoint, "weights_sha256": weights_sha256, "reward_input": config.reward_input,
+            "tasks": list(config.tasks)}
+
+
+def _identity_of(run: dict[str, Any]) -> dict[str, Any]:
+    config = run.get("config")
+    config = config if isinstance(config, dict) else {}
+    return {"checkpoint": run.get("checkpoint"), "weights_sha256": run.get("weights_sha256"),
+            "reward_input": config.get("reward_input"), "tasks": config.get("tasks")}
+
+
+def describe_run(identity: dict[str, Any]) -> str:
+    """A run's identity in words, for the message that refuses to mix two runs."""
+    sha = identity.get("weights_sha256")
+    tasks = identity.get("tasks")
+    named = ", ".join(map(str, tasks)) if isinstance(tasks, list) else "?"
+    return (f"{identity.get('checkpoint')!r} (weights sha256 {str(sha)[:12] if sha else 'not recorded'}, "
+            f"{identity.get('reward_input')} rewards, tasks {named})")
+
+
+def check_results_folder(out: Path, identity: dict[str, Any], overwrite: bool) -> None:
+    """OutputPathError where `out` holds results of another run than `identity` (`run_identity`), naming both: a
+    re-run of the same run may replace its own results, anything else needs `overwrite`. Called with `out`
+    locked, whose entries the lock checked (no FIFO or link is read)."""
     try:
-        return str(json_loads((folder / RUN_FILE).read_text())["checkpoint"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
+        run = json_loads((out / RUN_FILE).read_text())
+    except (OSError, ValueError):
+        run = None
+    if isinstance(run, dict) and _identity_of(run) == identity:
+        return
+    if isinstance(run, dict) and not overwrite and (out / EPISODES_FILE).exists():
+        raise OutputPathError(f"{out} holds the results of {describe_run(_identity_of(run))}; this run is "
+                              f"{describe_run(identity)}: write them to another --out, or pass --overwrite to "
+                              "replace them")
+    check_replaceable(out, "results", overwrite)
 
 
 def default_label(checkpoint: str, reward_input: str = "true") -> str:
@@ -401,13 +438,16 @@ def evaluate(
     if out is None:
         return _evaluate(agent, config, None, checkpoint, label, progress, ray)
     check_output_path(out / EPISODES_FILE)  # fail now, not after the whole run
-    check_replaceable(out, "results", overwrite, same_output=_results_of(out) == checkpoint)
+    check_output_kind(out, "results")  # by the names in it alone, before the lock leaves its file there
+    identity = run_identity(checkpoint, weights_sha256(agent.model), config)
+    # The lock first: it refuses a folder holding a FIFO or a link before anything in it is read.
     with folder_lock(out, "vintix eval"):  # a second eval into `out` is refused, not mixed with this one
-        return _evaluate(agent, config, out, checkpoint, label, progress, ray)
+        check_results_folder(out, identity, overwrite)
+        return _evaluate(agent, config, out, checkpoint, label, progress, ray, identity["weights_sha256"])
 
 
 def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: str, label: str | None,
-              progress: bool, ray: str | None) -> tuple[list[dict[str, Any]], list[str]]:
+              progress: bool, ray: str | None, weights: str = "") -> tuple[list[dict[str, Any]], list[str]]:
     specs, notes = select_tasks(config.tasks, list(agent.model.groups), [t.task for t in agent.model.task_norms])
     if config.ml1 and (others := [spec.name for spec in specs if spec.domain != "metaworld"]):
         raise EvalConfigError(f"ml1: Meta-World's ML1 protocol is for Meta-World tasks, not {', '.join(others)}; "
@@ -422,6 +462,7 @@ def _evaluate(agent: Agent, config: EvalConfig, out: Path | None, checkpoint: st
         write_results(out, rows, {
             "label": label or default_label(checkpoint, config.reward_input),
             "checkpoint": checkpoint,
+            "weights_sha256": weights,
             "model_config": asdict(model.config),
             "config": asdict(config),
             "references": {table: {task: None if ref is None else asdict(ref) for task, ref in by_task.items()}

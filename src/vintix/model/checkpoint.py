@@ -15,6 +15,7 @@ the same way.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -97,6 +98,17 @@ def save_pretrained(model: Vintix, directory: str | os.PathLike[str], extra: dic
     model.checkpoint_extra = dict(extra or {})
     model.save_pretrained(directory, model_card_kwargs=model_card_fields(model, model.checkpoint_extra, details, name))
     return directory
+
+
+def weights_sha256(model: Vintix) -> str:
+    """sha256 of the model's parameters and buffers (names, dtypes, shapes and bytes, in name order): which weights
+    they are, wherever they were loaded from, so that two models of one name are told apart."""
+    digest = hashlib.sha256()
+    for name, tensor in sorted(model.state_dict().items()):
+        value = tensor.detach().cpu().contiguous()
+        digest.update(f"{name}:{value.dtype}:{tuple(value.shape)};".encode())
+        digest.update(value.view(torch.uint8).numpy().tobytes() if value.numel() else b"")
+    return digest.hexdigest()
 
 
 def write_checkpoint(model: Vintix, directory: Path) -> None:

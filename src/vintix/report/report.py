@@ -18,6 +18,7 @@ section: the first model's converged score and success minus each other's (the p
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import re
 from collections import defaultdict
@@ -149,6 +150,11 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
             success[variant] = both[..., 1]
     notes = [f"{folder}: " + missing_reference_note(missing, table)] if missing else []
     reward_input = _reward_input(episodes, fed, run)
+    recorded = run.get("episodes_sha256")  # results written before the hash existed are read as they are
+    if recorded is not None and recorded != hashlib.sha256(episodes.read_bytes()).hexdigest():
+        raise VintixError(f"{folder}: {EPISODES_FILE} is not the one {RUN_FILE} describes (its sha256 differs): the "
+                          f"folder mixes the files of two runs, so its results would be reported under the wrong "
+                          f"model or settings; {rewrite}")
     return Results(run.get("label") or folder.name, folder, run, scores, domains, tasks, success, seeds,
                    reward_input), notes
 
