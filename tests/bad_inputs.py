@@ -471,6 +471,11 @@ CHECKPOINTS = {
         json.dumps({**json.loads((d / "config.json").read_text()), "format_version": 99}))),
     "groups-malformed": damaged_checkpoint("groups-malformed", lambda d: (d / "config.json").write_text(
         json.dumps({**json.loads((d / "config.json").read_text()), "groups": [{"x": 1}]}))),
+    # One typed loader (issue 71, class 4): fields of the wrong JSON type were tracebacks.
+    **{f"{field}-is-{kind}": damaged_checkpoint(f"{field}-is-{kind}", lambda d, field=field, value=value: (
+        d / "config.json").write_text(json.dumps({**json.loads((d / "config.json").read_text()), field: value})))
+       for field, kind, value in [("custom_tasks", "a-list", ["reach-v3"]), ("config", "a-list", [1, 2]),
+                                  ("groups", "an-object", {"metaworld": 1}), ("task_norms", "text", "none")]},
     "config-text-heads": damaged_checkpoint("config-text-heads", lambda d: (d / "config.json").write_text(json.dumps(
         {**json.loads((d / "config.json").read_text()),
          "config": {**json.loads((d / "config.json").read_text())["config"], "n_heads": "2"}}))),

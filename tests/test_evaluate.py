@@ -441,7 +441,11 @@ cli_error("eval", "--prompt-from a history with a NaN reward", nan_prompt, "NaN"
 cli_error("eval", "--checkpoint an empty folder", lambda: [*EVAL, "--checkpoint", empty_dir("empty3")()],
           "neither a model checkpoint")
 for damage, needle in [("truncated-weights", "truncated or damaged"), ("garbage-json", "not valid JSON"),
-                       ("json-missing-keys", "missing keys"), ("nan-weights", "NaN/inf"),
+                       ("json-missing-keys", "no field 'format_version' (int)"), ("nan-weights", "NaN/inf"),
+                       ("custom_tasks-is-a-list", "field 'custom_tasks' must be dict[str, dict[str, Any]], got"),
+                       ("config-is-a-list", "field 'config' must be dict[str, Any], got [1, 2]"),
+                       ("groups-is-an-object", "field 'groups' must be list[dict[str, Any]]"),
+                       ("task_norms-is-text", "field 'task_norms' must be list[dict[str, Any]], got \"none\""),
                        ("no-weights", "model.safetensors is not"), ("future-format", "checkpoint format 99"),
                        ("groups-malformed", "does not describe a model"), ("config-text-heads", "n_heads must be int"),
                        ("weights-of-another-model", "does not fit the model")]:

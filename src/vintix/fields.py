@@ -12,13 +12,18 @@ import ast
 import dataclasses
 import functools
 import itertools
+import json
 import math
 import os
 import types
 import typing
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
+
+from vintix.errors import json_loads
+
+T = TypeVar("T")
 
 _INVALID = object()
 
@@ -142,3 +147,30 @@ def capped_threads(requested: int, note: Callable[[str], object]) -> int:
         return requested
     note(f"--threads {requested} is more than the {cores} cores this process may use: using {cores}")
     return cores
+
+
+def read_json_file(path: Path, schema: type[T], error: type[Exception], fix: str) -> T:
+    """The JSON object in the file at `path` as the dataclass `schema`, the one way every JSON file vintix reads is
+    checked: each field present unless it has a default, each of its annotated type (`_coerce`), keys the schema
+    does not name ignored (a newer writer's). `error` names the file, the field and the type it expected, then
+    `fix`; a file that is not JSON, or not an object, likewise."""
+    try:
+        data = json_loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as problem:
+        raise error(f"{path}: not valid JSON ({problem}); {fix}") from None
+    if not isinstance(data, dict):
+        raise error(f"{path}: expected a JSON object, got {type(data).__name__}; {fix}")
+    hints = typing.get_type_hints(schema)
+    values = {}
+    for field in dataclasses.fields(schema):  # type: ignore[arg-type]
+        if field.name not in data:
+            if field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING:
+                raise error(f"{path}: no field {field.name!r} ({type_name(hints[field.name])}); {fix}")
+            continue
+        converted = _coerce(data[field.name], hints[field.name])
+        if converted is _INVALID:
+            shown = json.dumps(data[field.name], default=str)
+            raise error(f"{path}: field {field.name!r} must be {type_name(hints[field.name])}, got "
+                        f"{shown if len(shown) <= 60 else shown[:59] + '…'}; {fix}")
+        values[field.name] = converted
+    return schema(**values)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from vintix.errors import VintixError
 from vintix.fields import check_field_types
@@ -105,3 +106,24 @@ class EvalConfig:
         if self.prompt_from is not None:
             raise EvalConfigError("ml1: a prompt brings its own history's goal; ML1's runs start cold on its test "
                                   "goals, so drop prompt_from")
+
+
+@dataclass
+class RunFile:
+    """``run.json`` of a results folder, the fields its readers use (`vintix.fields.read_json_file` checks them; the
+    file holds more: the model's config, the references, the time taken)."""
+
+    checkpoint: str = ""
+    """the model's name, as results name it (a shipped model's name, or its path)"""
+    label: str | None = None
+    """its name in reports"""
+    weights_sha256: str | None = None
+    """which weights played (`vintix.model.checkpoint.weights_sha256`); None in results from before it was kept"""
+    config: dict[str, Any] = field(default_factory=dict)
+    """the EvalConfig's fields"""
+    custom_tasks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """the specs of the tasks of your own it played"""
+    goal_protocol: str | None = None
+    """how hidden goals were drawn, where a task has one"""
+    episodes_sha256: str | None = None
+    """the sha256 of the episodes.csv it describes; None in results from before it was kept"""

@@ -36,9 +36,17 @@ from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_kind, check_output_path, check_replaceable, folder_lock
 from vintix.data.discovery import find_tasks
 from vintix.data.reader import LearningHistory
-from vintix.errors import OutputPathError, UnknownTaskError, VintixError, json_loads
-from vintix.evaluate.config import ML1_ADAPTATION_SHOTS, ML1_SCORED_SHOTS, PLATEAU_SHOTS, EvalConfig, EvalConfigError
+from vintix.errors import OutputPathError, UnknownTaskError, VintixError
+from vintix.evaluate.config import (
+    ML1_ADAPTATION_SHOTS,
+    ML1_SCORED_SHOTS,
+    PLATEAU_SHOTS,
+    EvalConfig,
+    EvalConfigError,
+    RunFile,
+)
 from vintix.evaluate.summary import best_k_plateau, estimate_with_ci
+from vintix.fields import read_json_file
 from vintix.model.checkpoint import weights_sha256
 from vintix.model.model import Vintix
 from vintix.tasks import TaskSpec, action_space_of, find_task, get_task, make_env, resolve_tasks, select_tasks
@@ -407,12 +415,12 @@ def check_results_folder(out: Path, identity: dict[str, Any], overwrite: bool) -
     re-run of the same run may replace its own results, anything else needs `overwrite`. Called with `out`
     locked, whose entries the lock checked (no FIFO or link is read)."""
     try:
-        run = json_loads((out / RUN_FILE).read_text())
-    except (OSError, ValueError):
+        run: dict[str, Any] | None = asdict(read_json_file(out / RUN_FILE, RunFile, VintixError, ""))
+    except (OSError, VintixError):  # none, or not one vintix could have written: the general rule below
         run = None
-    if isinstance(run, dict) and _identity_of(run) == identity:
+    if run is not None and _identity_of(run) == identity:
         return
-    if isinstance(run, dict) and not overwrite and (out / EPISODES_FILE).exists():
+    if run is not None and not overwrite and (out / EPISODES_FILE).exists():
         raise OutputPathError(f"{out} holds the results of {describe_run(_identity_of(run))}; this run is "
                               f"{describe_run(identity)}: write them to another --out, or pass --overwrite to "
                               "replace them")

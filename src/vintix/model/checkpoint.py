@@ -20,6 +20,7 @@ import json
 import math
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,8 @@ import torch
 from safetensors.torch import load_file
 
 from vintix.atomic import atomic_save_tensors, atomic_write_text
-from vintix.errors import DeviceError, VintixError, json_loads
+from vintix.errors import DeviceError, VintixError
+from vintix.fields import read_json_file
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters, estimated_parameters
 from vintix.tasks import list_tasks
@@ -161,24 +163,36 @@ def is_checkpoint(directory: str | os.PathLike[str]) -> bool:
     return checkpoint_config_path(directory) is not None
 
 
+@dataclass
+class CheckpointFile:
+    """The JSON half of a checkpoint (``config.json``), as `read_metadata` checks it."""
+
+    format_version: int
+    """`FORMAT_VERSION` of the vintix that wrote it"""
+    config: dict[str, Any]
+    """the ModelConfig's fields"""
+    groups: list[dict[str, Any]]
+    """each GroupSpec's fields"""
+    task_norms: list[dict[str, Any]]
+    """each task's normalization statistics (`task_norm_from_json`)"""
+    extra: dict[str, Any] = field(default_factory=dict)
+    """what the model records about its training (`Vintix.checkpoint_extra`)"""
+    custom_tasks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """the specs of the tasks of your own it was trained on (`vintix.tasks.custom`)"""
+
+
 def read_metadata(directory: str | os.PathLike[str]) -> dict[str, Any]:
-    """The JSON half of a checkpoint, checked for the keys `load_pretrained` needs."""
+    """The JSON half of a checkpoint, each field of the type `CheckpointFile` gives it."""
     found = checkpoint_config_path(directory)
     if found is None:
         raise CheckpointError(f"{directory}: no {CONFIG_FILE}; is this a checkpoint directory written by vintix?")
-    path = found
-    try:
-        meta = json_loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise CheckpointError(f"{path}: not valid JSON ({error}); the checkpoint is damaged, re-save it") from error
-    missing = [key for key in ("format_version", "config", "groups", "task_norms") if key not in meta]
-    if missing:
-        raise CheckpointError(f"{path}: missing keys {missing}; the checkpoint is damaged or not vintix's")
-    if meta["format_version"] != FORMAT_VERSION:
+    meta = read_json_file(found, CheckpointFile, CheckpointError, "the checkpoint is damaged or not vintix's: re-save "
+                          "it, or use another")
+    if meta.format_version != FORMAT_VERSION:
         raise CheckpointError(
-            f"{path}: checkpoint format {meta['format_version']}, this vintix reads format {FORMAT_VERSION}"
+            f"{found}: checkpoint format {meta.format_version}, this vintix reads format {FORMAT_VERSION}"
         )
-    return meta
+    return dataclasses.asdict(meta)
 
 
 def build_model(meta: dict[str, Any]) -> Vintix:

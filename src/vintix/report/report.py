@@ -18,9 +18,10 @@ section: the first model's converged score and success minus each other's (the p
 from __future__ import annotations
 
 import csv
+import dataclasses
 import hashlib
-import json
 import re
+import shutil
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,10 +33,18 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure  # figures straight to files: no pyplot state, no GUI backend
 from matplotlib.ticker import MaxNLocator
 
-from vintix.atomic import atomic_path, atomic_write_text, check_output_kind, file_name, folder_lock
+from vintix.atomic import (
+    PARTIAL_SUFFIX,
+    atomic_directory,
+    atomic_path,
+    atomic_write_text,
+    check_output_kind,
+    file_name,
+    folder_lock,
+)
 from vintix.demonstrators.goal_blind import read_goal_blind
-from vintix.errors import VintixError, json_loads
-from vintix.evaluate.config import PLATEAU_SHOTS
+from vintix.errors import VintixError, printable
+from vintix.evaluate.config import PLATEAU_SHOTS, RunFile
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import (
     best_k_plateau,
@@ -45,6 +54,7 @@ from vintix.evaluate.summary import (
     iqm_with_ci,
     stratified_iqm_with_ci,
 )
+from vintix.fields import read_json_file
 from vintix.tasks import get_task
 from vintix.tasks.custom import register_specs
 from vintix.tasks.scores import (
@@ -93,12 +103,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     if not episodes.is_file() or not run_file.is_file():
         raise VintixError(f"{folder}: no {EPISODES_FILE} and {RUN_FILE}; point to a folder written by `vintix eval`")
     rewrite = "re-run `vintix eval` into this folder"
-    try:
-        run = json_loads(run_file.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise VintixError(f"{run_file}: not valid JSON ({error}); {rewrite}") from error
-    if not isinstance(run, dict):
-        raise VintixError(f"{run_file}: expected a JSON object; {rewrite}")
+    run = dataclasses.asdict(read_json_file(run_file, RunFile, VintixError, rewrite))
     register_specs(run.get("custom_tasks", {}), str(run_file))  # your own tasks travel with their results
     # variant -> run (seed, prompt) -> shot -> (normalized score, success flag or NaN)
     runs: dict[str, dict[tuple[int, str], dict[int, tuple[float, float]]]] = defaultdict(lambda: defaultdict(dict))
@@ -219,7 +224,7 @@ def plot_curves(curves: dict[str, tuple[np.ndarray, int]], title: str, path: Pat
         shots = np.arange(1, len(curve) + 1)
         few = f"; fewer than {FEW_RUNS}: the band says little" if runs < FEW_RUNS else ""
         axis.plot(shots, curve[:, 0], marker="o" if len(shots) < 12 else None, markersize=3,
-                  label=f"{label} ({runs} runs{few})")
+                  label=f"{printable(label)} ({runs} runs{few})")
         axis.fill_between(shots, curve[:, 1], curve[:, 2], alpha=0.2)
     axis.axhline(1.0, color="gray", linestyle="--", linewidth=0.8)
     axis.axhline(0.0, color="gray", linestyle=":", linewidth=0.8)
@@ -261,6 +266,10 @@ def markdown_text(text: str) -> str:
     Markdown or HTML reads (a heading's #, a cell's |, a tag's <, a link's [, emphasis) backslash-escaped, every line
     break and control character a space, so that report.md shows it as written and nothing else."""
     return _MARKDOWN_SPECIAL.sub(r"\\\1", " ".join("".join(c if c.isprintable() else " " for c in text).split()))
+
+
+FIGURES = "figures"
+"""The folder of a report's figures, beside its report.md"""
 
 
 def markdown_code(text: str) -> str:
@@ -470,11 +479,16 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
                           "a zero or shuffled one of the same checkpoint: give both folders")
     check_output_kind(out, "report")
     with folder_lock(out, "vintix report"):  # a second report into `out` is refused, not mixed with this one
-        return _write_report(folders, out, table, plateau_shots, model_card, gap_shots)
+        for leftover in out.glob(f"{FIGURES}.*{PARTIAL_SUFFIX}"):  # of a report a signal stopped
+            shutil.rmtree(leftover, ignore_errors=True)
+        # The figures are drawn into a folder of their own that replaces the old one whole once report.md is
+        # written: a stopped report leaves the last one as it was, and no figure of another report stays.
+        with atomic_directory(out / FIGURES) as figures:
+            return _write_report(folders, out, figures, table, plateau_shots, model_card, gap_shots)
 
 
-def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shots: int | None, model_card: bool,
-                  gap_shots: tuple[int, int] | None) -> WrittenReport:
+def _write_report(folders: list[Path], out: Path, figures: Path, table: str, given_plateau_shots: int | None,
+                  model_card: bool, gap_shots: tuple[int, int] | None) -> WrittenReport:
     loaded = [load_results(Path(folder), table) for folder in folders]
     results = [r for r, _ in loaded]
     notes = [n for _, ns in loaded for n in ns]
@@ -491,7 +505,6 @@ def _write_report(folders: list[Path], out: Path, table: str, given_plateau_shot
         for r in results:
             r.label = f"{r.label} ({r.folder.name})"
     with_success = any(r.success for r in results)
-    figures = out / "figures"
     lines = ["# In-context evaluation report\n",
              f"Normalized score `(R − random) / (expert − random)` with the **{table}** reference table; "
              "a task's scores are means over its runs (as `vintix eval` prints them), a domain's are IQMs over its "
