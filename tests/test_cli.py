@@ -272,6 +272,7 @@ def test_a_full_disk_ends_in_one_line_that_says_what_to_do(small_disk):
     output = " ".join(result.output.split())  # rich wraps long lines
     assert result.exit_code == 2 and "Traceback" not in output
     assert "No space left on device" in output and "the disk is full: free space or write elsewhere" in output
+    assert "t.csv" in output and "resume" not in output  # the file named; no advice that belongs to collect or train
     assert sorted(p.name for p in small_disk.iterdir()) == ["ballast"]  # no t.csv.partial
 
 

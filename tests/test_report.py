@@ -451,3 +451,15 @@ def test_a_results_folder_belongs_to_one_run_episodes_of_one_and_run_json_of_ano
     shutil.copy(two_results / "ad-no-reward" / "run.json", mixed / "run.json")  # another model's settings
     result = CliRunner().invoke(app, ["report", str(mixed), "--out", str(tmp_path / "report")])
     assert result.exit_code != 0 and "episodes.csv is not the one run.json describes" in " ".join(result.output.split())
+
+
+def test_a_report_replaces_the_last_ones_figures_whole_and_a_stopped_ones_leftovers_go(two_results, tmp_path):
+    out = tmp_path / "report"
+    first = CliRunner().invoke(app, ["report", str(two_results / "ad"), "--out", str(out)])  # two tasks
+    assert first.exit_code == 0, first.output
+    (out / "figures.stopped.partial").mkdir()  # what a report stopped by a signal leaves
+    second = CliRunner().invoke(app, ["report", str(two_results / "ad-zero"), "--out", str(out)])  # reach-v3 only
+    assert second.exit_code == 0, second.output
+    names = sorted(p.name for p in (out / "figures").rglob("*.png"))
+    assert "InvertedPendulum-v5.png" not in names and not list(out.glob("*.partial"))  # the first's are gone
+    assert f"and {len(names)} figures under" in " ".join(second.output.split())

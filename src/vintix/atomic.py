@@ -133,6 +133,10 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         yield temporary
         publish(temporary, final)
+    except OSError as error:
+        if error.filename is None:  # a failed write() names no file: name the one it was writing (a full disk)
+            raise OSError(error.errno, error.strerror, str(final)) from error
+        raise
     finally:
         temporary.unlink(missing_ok=True)
 

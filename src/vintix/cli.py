@@ -14,6 +14,7 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
+import click
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -77,7 +78,7 @@ class _Commands(TyperGroup):
         try:
             return super().invoke(ctx)
         except (VintixError, OSError) as error:
-            raise _fail(error) from None
+            raise _fail(error, ctx.invoked_subcommand) from None
         except KeyboardInterrupt as interrupt:  # Ctrl-C, or `kill` during a command that takes it as one
             # An `Interrupted` says what its command saved; a bare KeyboardInterrupt, what every command keeps.
             console.print(str(interrupt) or "interrupted: files finished before are kept, and collect and train "
@@ -132,9 +133,10 @@ _ON_TERMINAL = sys.stdout.isatty()
 console = Console(width=None if _ON_TERMINAL else 160, soft_wrap=not _ON_TERMINAL)
 
 
+_RESUMING_COMMANDS = ("collect", "train")
+"""The commands that, re-run, go on from the files a stopped run kept (a full disk's advice says so for them only)."""
 _OS_ERROR_FIXES = {
-    errno.ENOSPC: "the disk is full: free space or write elsewhere (--out); finished files are kept, and collect "
-                  "and train resume from them when re-run",
+    errno.ENOSPC: "the disk is full: free space or write elsewhere (--out)",
     errno.EDQUOT: "the disk quota is used up: free space or write elsewhere (--out)",
     errno.EROFS: "the file system is read-only: write elsewhere (--out)",
     errno.EACCES: "no permission: write elsewhere (--out) or fix the folder's permissions",
@@ -142,10 +144,18 @@ _OS_ERROR_FIXES = {
 }
 
 
-def _fail(error: Exception) -> typer.Exit:
+def _fail(error: Exception, command: str | None = None) -> typer.Exit:
+    """Print `error` as one line with its fix; `command`: the vintix command it ended, where its context is gone (an
+    error that reached the group), else the current context's."""
     message = str(error)
     if isinstance(error, OSError) and error.errno in _OS_ERROR_FIXES:
+        if error.filename is not None and str(error.filename) not in message:  # name the file it could not write
+            message += f": {error.filename}"
         message += f"; {_OS_ERROR_FIXES[error.errno]}"
+        if command is None and (context := click.get_current_context(silent=True)) is not None:
+            command = context.info_name
+        if error.errno in (errno.ENOSPC, errno.EDQUOT) and command in _RESUMING_COMMANDS:
+            message += f"; the finished files are kept, and the same `vintix {command}` resumes from them"
     # escape: a message quoting "list[str]" or "[reach-v3]" would otherwise lose it as rich markup; printable: text
     # that a file supplied (a task name, a lock's holder) must not send escape codes to the terminal.
     console.print(f"[red]error:[/red] {escape(printable(message))}")
