@@ -308,20 +308,20 @@ cli_error("outputs", "resume training in a run with a checkpoint's temporary fol
     planted("step-partial", trained_run, "checkpoints/step-00000099.partial", lambda: work())()], "symbolic link")
 
 
-@once
-def results_with_a_fifo() -> Path:
-    folder = work() / "results-fifo"
-    folder.mkdir()
-    os.mkfifo(folder / "episodes.csv")
-    return folder
+def results_with_a_fifo_as(name: str) -> Callable[[], Path]:
+    """A results folder whose file `name` is a FIFO (a read of it would hang)."""
+    @once
+    def make() -> Path:
+        folder = work() / f"results-fifo-{name}"
+        folder.mkdir()
+        os.mkfifo(folder / name)
+        return folder
+
+    return make
 
 
-@once
-def results_with_a_fifo_run_json() -> Path:
-    folder = work() / "results-fifo-run-json"
-    folder.mkdir()
-    os.mkfifo(folder / "run.json")
-    return folder
+results_with_a_fifo, results_with_a_fifo_run_json = results_with_a_fifo_as("episodes.csv"), results_with_a_fifo_as(
+    "run.json")
 
 
 def eval_one_episode(checkpoint: object, out: object, *options: object) -> tuple[int, str]:

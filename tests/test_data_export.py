@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import fill_up
 from vintix.cli import app
 from vintix.collect import CollectionPlan, collect
 from vintix.collect.export import export_minari
@@ -168,3 +169,12 @@ def test_your_own_tasks_keep_their_env_or_its_bounds(tmp_path, minari_home):
         assert point.spec.action_space == BoundedPoint.action_space
     finally:
         registry._custom.clear()
+
+
+def test_a_full_disk_is_said_before_a_minari_export_writes(pendulum_data, small_disk, monkeypatch):
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(small_disk / "minari"))
+    fill_up(small_disk)
+    with pytest.raises(OSError, match=r"the Minari dataset 'vintix/pendulum-v0' would need about .* GiB free; free"):
+        export_minari(pendulum_data, "vintix/pendulum-v0")
+    written = [p.name for p in small_disk.rglob("*") if p.is_file()]
+    assert written == ["ballast"]  # nothing begun (Minari's own root folder aside), no h5py traceback

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import subprocess
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -360,6 +362,20 @@ for bad_id in ("vintix/reach.v3-v0", "vintix//reach-v0", "vintix/reach v3-v0", "
         "data", "export-minari", clean_data(), "--dataset-id", bad_id], "expected [namespace/]name-vN",
         setup=minari_root, after=lambda: "a folder was made under Minari's root" if any(
             (work() / "minari" / "datasets").glob("*/*")) else None)
+
+
+
+def dataset_with_a_fifo_history() -> Path:
+    """A clean dataset plus a FIFO named like a history, which the readers skip."""
+    root = work() / "data-fifo-history"
+    if not root.exists():
+        shutil.copytree(clean_data(), root)
+        os.mkfifo(root / "metaworld" / "reach-v3" / "history-0009.h5")
+    return root
+
+
+cli_error("data", "validate a dataset holding a FIFO named like a history (it passed as clean)",
+          lambda: ["data", "validate", dataset_with_a_fifo_history()], "not a regular file")
 
 
 test_bad_input_ends_as_expected = bad_input_test("data")

@@ -15,6 +15,7 @@ import torch
 import torch.nn.functional as F
 from typer.testing import CliRunner
 
+from conftest import fill_up
 from vintix.agent import Agent
 from vintix.agent.pretrained import resolve_checkpoint
 from vintix.cli import app
@@ -504,3 +505,23 @@ def test_eval_runs_a_raw_release_snapshot_through_the_cli(release, tmp_path):
     assert result.exit_code == 0, result.output
     rows = (tmp_path / "results" / "episodes.csv").read_text().splitlines()
     assert len(rows) == 3 and rows[1].startswith("reach-v3") and rows[2].startswith("industrial-benchmark-40-v1")
+
+
+def test_a_full_disk_is_said_before_a_release_export_writes(small_disk):
+    fill_up(small_disk)
+    with pytest.raises(OSError, match=r"the release snapshot would need about .* GiB free; free space, or write"):
+        export_official(resolve_checkpoint("vintix-cpu"), small_disk / "out")
+    assert sorted(p.name for p in small_disk.iterdir()) == ["ballast"]
+
+
+def test_two_evals_of_one_release_snapshot_share_its_import(release):
+    """The second of two imports at once into the user cache waits for the first and reuses it (the import's folder
+    lock refused it)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from vintix.agent.pretrained import imported_snapshot
+    from vintix.model.checkpoint import is_checkpoint
+
+    with ThreadPoolExecutor(2) as pool:
+        first, second = pool.map(imported_snapshot, [release[0], release[0]])
+    assert first == second and is_checkpoint(first)

@@ -1,6 +1,9 @@
 """The task registry: all 102 tasks of the paper (and the package's own hidden-goal tasks), their dims, groups,
 splits and names."""
 
+import os
+from pathlib import Path
+
 import pytest
 
 from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
@@ -123,6 +126,19 @@ api_error("tasks", "make_env with a NaN gravity scale", lambda: __import__("vint
     "HalfCheetah-v5", gravity_scale=float("nan")), "gravity_scale")
 documented("tasks", "get_task('Pusher-v4') is Pusher-v5",
            lambda: None if __import__("vintix").get_task("Pusher-v4").name == "Pusher-v5" else "not the v5 task")
+
+
+
+def a_fifo(name: str) -> Path:
+    path = work() / name
+    if not path.exists():
+        os.mkfifo(path)
+    return path
+
+
+# No blocking open of what is not a regular file (issue 71, class 6): a tasks file that is a FIFO hung every command.
+cli_error("tasks", "--tasks-file naming a FIFO", lambda: ["--tasks-file", a_fifo("tasks-fifo.yaml"), "tasks"],
+          "not a regular file")
 
 
 test_bad_input_ends_as_expected = bad_input_test("tasks", "check-envs")

@@ -43,6 +43,34 @@ def file_name(name: str) -> str:
     return f"{safe[:MAX_NAME_BYTES - len(digest) - 1]}-{digest}"
 
 
+def check_free_space(folder: str | os.PathLike[str], needed: int, what: str, fix: str) -> None:
+    """An OSError (ENOSPC) now, naming `folder`, the space `what` (a plural subject: "the histories", "the dataset
+    would") needs and what it has, where the file system that will hold `folder` has less free than `needed` bytes:
+    a full disk said before the work, not in its middle."""
+    folder = Path(folder)
+    existing = next(p for p in (folder, *folder.parents) if p.exists())
+    free = shutil.disk_usage(existing).free
+    if needed > free:
+        raise OSError(errno.ENOSPC, f"{what} need about {needed / 2**30:,.2f} GiB, and {existing} has "
+                                    f"{free / 2**30:,.2f} GiB free; {fix}", str(folder))
+
+
+def read_regular_text(path: str | os.PathLike[str]) -> str:
+    """The text of the file at `path`, which must be a regular file: opened without blocking, so that a FIFO, a socket
+    or a device given where a file is meant is an OSError naming it instead of a read that hangs for ever."""
+    descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            raise OSError(errno.EINVAL, "not a regular file (a FIFO or a device would hang the read)", str(path))
+        os.set_blocking(descriptor, True)
+        with os.fdopen(descriptor, encoding="utf-8") as handle:
+            descriptor = -1  # the handle closes it
+            return handle.read()
+    finally:
+        if descriptor >= 0:
+            os.close(descriptor)
+
+
 def new_partial_file(path: str | os.PathLike[str]) -> Path:
     """A new, empty temporary file beside `path` that holds it until it is complete (same directory, so the
     final rename is atomic on POSIX filesystems): ``<name>.<random>.partial``, created exclusively, so a file or a

@@ -5,6 +5,7 @@ that made it and what they measured; the card carries it too (``scripts/resave_s
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import os
 from importlib import resources
@@ -35,8 +36,16 @@ def imported_snapshot(snapshot: Path) -> Path:
     for name in (WEIGHTS, CONFIG, METADATA):
         digest.update(file_sha256(snapshot / name).encode())
     directory = user_cache_dir("official") / digest.hexdigest()[:16]
-    if not is_checkpoint(directory):
-        import_official(snapshot, directory, overwrite=True)  # the cache's own folder: a leftover of a failed import
+    if is_checkpoint(directory):
+        return directory
+    # Two evals of one snapshot at once: the second waits for the first's import and reuses it, where the import's
+    # own folder lock would refuse it.
+    locks = user_cache_dir("official-imports")  # beside the cache, which holds imports only
+    locks.mkdir(parents=True, exist_ok=True)
+    with open(locks / f"{directory.name}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not is_checkpoint(directory):
+            import_official(snapshot, directory, overwrite=True)  # the cache's own folder: a failed import's leftover
     return directory
 
 

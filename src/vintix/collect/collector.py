@@ -23,7 +23,6 @@ from __future__ import annotations
 import ctypes
 import multiprocessing
 import os
-import shutil
 import signal
 import sys
 import zlib
@@ -37,7 +36,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vintix import cluster
-from vintix.atomic import check_output_kind, folder_lock, remove_leftovers
+from vintix.atomic import check_free_space, check_output_kind, folder_lock, remove_leftovers
 from vintix.collect.calibrate import pilot_knots
 from vintix.collect.noise import NoiseSchedule, epsilon_greedy, mix_action
 from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, write_task_metadata
@@ -507,12 +506,11 @@ def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:
     space than the folder's file system has free (`history_bytes`)."""
     missing = sum(history_bytes(get_task(plan.task), plan.steps) for plan in plans for i in plan.indices
                   if not history_path(root, get_task(plan.task), i).exists())
-    existing = next(p for p in (root, *root.parents) if p.exists())
-    free = shutil.disk_usage(existing).free
-    if missing > free:
-        raise CollectionError(f"the histories still to collect need about {missing / 2**30:,.1f} GiB, and {existing} "
-                              f"has {free / 2**30:,.1f} GiB free; free space, collect fewer or shorter histories, or "
-                              "write elsewhere (--out)")
+    try:
+        check_free_space(root, missing, "the histories still to collect", "free space, collect fewer or shorter "
+                         "histories, or write elsewhere (--out)")
+    except OSError as error:
+        raise CollectionError(error.strerror) from None
 
 
 def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator: Demonstrator | None,

@@ -31,6 +31,7 @@ from minari.dataset.minari_dataset import parse_dataset_id
 from minari.namespace import validate_namespace
 from minari.storage.datasets_root_dir import get_dataset_path
 
+from vintix.atomic import check_free_space
 from vintix.collect.noise import NoiseSchedule
 from vintix.data.discovery import TaskData, find_tasks
 from vintix.data.layout import TERMINATED
@@ -72,6 +73,9 @@ def export_minari(root: str | os.PathLike[str], dataset_id: str, task: str | Non
                           "with --overwrite")
     if not data.history_paths:
         raise VintixError(f"{data.task_dir}: no histories to export")
+    # Minari writes the rows again, uncompressed: about the histories' size on disk, and some.
+    check_free_space(get_dataset_path(dataset_id), int(1.2 * sum(p.stat().st_size for p in data.history_paths)),
+                     f"the Minari dataset {dataset_id!r} would", "free space, or point MINARI_DATASETS_PATH elsewhere")
     episodes, metadata = [], []
     for index, path in enumerate(data.history_paths):
         with LearningHistory(path) as history:

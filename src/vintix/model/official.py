@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from vintix.atomic import atomic_path, atomic_write_text, check_replaceable, folder_lock
+from vintix.atomic import atomic_path, atomic_write_text, check_free_space, check_replaceable, folder_lock
 from vintix.errors import json_loads
 from vintix.model.checkpoint import (
     WEIGHTS_FILE,
@@ -414,6 +414,9 @@ def export_official(checkpoint: str | os.PathLike[str], out: str | os.PathLike[s
     metadata.json), loadable by the authors' code; `import_official` of it gives the same model back. `out`
     must be empty or new, or `overwrite` given; never the checkpoint itself."""
     check_replaceable(out, "release", overwrite, inputs=[checkpoint])
+    # Before the lock writes its file: model.pth holds the same weights as model.safetensors, and JSON beside it.
+    check_free_space(out, int(1.1 * (Path(checkpoint) / "model.safetensors").stat().st_size) + 2**20,
+                     "the release snapshot would", "free space, or write elsewhere (--out)")
     with folder_lock(out, "vintix export-official"):  # two exports into `out` would mix their files
         return _export_official(checkpoint, out)
 

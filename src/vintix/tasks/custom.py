@@ -50,6 +50,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from vintix.atomic import read_regular_text
 from vintix.errors import PluginError, VintixError, call_plugin
 from vintix.tasks import registry
 from vintix.tasks.make import action_space_problem
@@ -180,7 +181,7 @@ def register_tasks_file(path: str | os.PathLike[str]) -> list[TaskSpec]:
     """Register every task of a YAML tasks file (this module's docstring shows one)."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(read_regular_text(path))
     except OSError as error:
         raise TaskSpecError(f"tasks file {path}: {error.strerror or error}; check the path ({ENV_VARIABLE} or "
                             "--tasks-file)") from error
