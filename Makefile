@@ -51,13 +51,16 @@ demo: $(INSTALLED)
 	echo "What the rewards do (true − zero fed back, 95 % CI; reports under $(DEMO)/report):"; \
 	for run in $(DEMO_RUNS); do grep -h "^reward-use gap: " $(DEMO)/logs/$${run%%:*}-report.log; done
 
-# It ends with the 15 slowest tests: where the suite's minutes go.
+# One pytest worker per core (pytest-xdist), each test file on one worker (a file's fixtures are built once), the files
+# in collection order, where tests/conftest.py puts the minutes-long end-to-end ones first (xdist's default order, most
+# tests first, left those one-test files to run last, side by side with nothing). It ends with the 15 slowest tests.
+TEST_WORKERS := -n auto --dist loadfile --no-loadscope-reorder
 test: $(INSTALLED)
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q $(TEST_WORKERS) --durations=15
 
 # Everything but the minutes-long end-to-end runs (tests marked slow): for the edit-test loop; CI runs make test.
 test-fast: $(INSTALLED)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q $(TEST_WORKERS) -m "not slow"
 
 # Re-resolve dependencies from pyproject.toml into requirements.lock (needs the package index).
 lock:

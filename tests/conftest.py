@@ -95,3 +95,9 @@ def fill_up(disk: Path) -> Path:
         except OSError:
             pass
     return ballast
+
+
+def pytest_collection_modifyitems(config, items):
+    """The minutes-long end-to-end tests (marked slow) first: with a pytest worker per core (`make test`), each file
+    on one worker, they then run side by side from the start instead of one of them alone at the end."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)  # stable: the rest keep their order
