@@ -1189,15 +1189,15 @@ def eval_command(
                                          "machine")] = 1,
     ray: Annotated[str | None, typer.Option(help=_RAY_HELP)] = None,
     overwrite: Annotated[bool, typer.Option(
-        help="write into --out even where it holds another checkpoint's results (a re-run of the same checkpoint "
-             "replaces its own without it)")] = False,
+        help="write into --out even where it holds another run's results (a re-run of the same run, the same "
+             "checkpoint, weights, rewards fed back and tasks, replaces its own without it)")] = False,
 ) -> None:
     """Many-shot in-context RL from an empty context (or a prompt); per-episode results and a summary."""
     import torch
 
     from vintix.agent import Agent, resolve_checkpoint
     from vintix.agent.pretrained import checkpoint_name
-    from vintix.evaluate import evaluate, iqm, ml1_success, parse_variation, shot_curves, shots_to_show, summarize
+    from vintix.evaluate import evaluate, ml1_success, parse_variation, summarize
     from vintix.tasks.scores import check_table
 
     torch.set_num_threads(capped_threads(threads, _note))
@@ -1224,6 +1224,16 @@ def eval_command(
         console.print(f"no task has a {reference} reference score, so there is no normalized table; wrote {written} "
                       "(returns and success per episode)")
         return
+    _print_task_summary(summary, reference, shots, seeds)
+    _print_shot_curves(rows, reference, shots)
+    if ml1:
+        _print_ml1(ml1_success(rows))
+    console.print(f"wrote {written}")
+
+
+def _print_task_summary(summary: list[dict[str, Any]], reference: str, shots: int, seeds: int) -> None:
+    """The table of `vintix eval`: per task, the normalized score at the first and last shot and its plateau, and
+    the success rate where the task has a success flag."""
     plateau = f"best {PLATEAU_SHOTS}-shot plateau" if PLATEAU_SHOTS < shots else f"mean of all {shots} shots"
     with_success = any(s["success_first"] is not None for s in summary)
     table = Table(title=f"normalized score ({reference} reference), mean over {seeds} run(s) per task"
@@ -1245,6 +1255,13 @@ def eval_command(
             cells += [_rate(s["success_first"]), _rate(s["success_plateau"])]
         table.add_row(*cells)
     console.print(table)
+
+
+def _print_shot_curves(rows: list[dict[str, Any]], reference: str, shots: int) -> None:
+    """The in-context table of `vintix eval`: per domain, the IQM of the normalized score (and the success rate)
+    at a spread of shots."""
+    from vintix.evaluate import iqm, shot_curves, shots_to_show
+
     shown = shots_to_show(shots)
     which = "at each shot" if len(shown) == shots else f"at shots {', '.join(map(str, shown))} of {shots}"
     per_shot = Table(title=f"in context: IQM of the normalized score ({reference} reference) {which} over the "
@@ -1260,9 +1277,6 @@ def eval_command(
             per_shot.add_row("  success rate",
                              *(_rate(success[shot - 1]) if shot <= len(success) else "" for shot in shown))
     console.print(per_shot)
-    if ml1:
-        _print_ml1(ml1_success(rows))
-    console.print(f"wrote {written}")
 
 
 def _print_ml1(summary: list[dict[str, Any]]) -> None:

@@ -487,24 +487,8 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
             return _write_report(folders, out, figures, table, plateau_shots, model_card, gap_shots)
 
 
-def _write_report(folders: list[Path], out: Path, figures: Path, table: str, given_plateau_shots: int | None,
-                  model_card: bool, gap_shots: tuple[int, int] | None) -> WrittenReport:
-    loaded = [load_results(Path(folder), table) for folder in folders]
-    results = [r for r, _ in loaded]
-    notes = [n for _, ns in loaded for n in ns]
-    if not any(r.scores for r in results):
-        raise VintixError(f"no task of {', '.join(map(str, folders))} has a '{table}' reference score to normalize "
-                          f"with: {' '.join(notes)}")
-    most = max(scores.shape[1] for r in results for scores in r.scores.values())
-    if given_plateau_shots is not None and given_plateau_shots > most:
-        raise VintixError(f"--plateau-shots {given_plateau_shots} is more shots than the runs have (at most {most}); "
-                          f"choose at most {most} (left out, it is {PLATEAU_SHOTS}, or all the shots of a shorter run)")
-    plateau_shots = given_plateau_shots or PLATEAU_SHOTS
-    labels = [r.label for r in results]
-    if len(set(labels)) < len(labels):  # the same checkpoint evaluated twice: tell them apart
-        for r in results:
-            r.label = f"{r.label} ({r.folder.name})"
-    with_success = any(r.success for r in results)
+def _header_lines(results: list[Results], table: str, plateau_shots: int, with_success: bool) -> list[str]:
+    """The report's title, what its numbers are, and one row per results folder: its label, checkpoint and run."""
     lines = ["# In-context evaluation report\n",
              f"Normalized score `(R − random) / (expert − random)` with the **{table}** reference table; "
              "a task's scores are means over its runs (as `vintix eval` prints them), a domain's are IQMs over its "
@@ -523,9 +507,14 @@ def _write_report(folders: list[Path], out: Path, figures: Path, table: str, giv
     goal = {str(protocol) for r in results if (protocol := r.run.get("goal_protocol")) is not None}
     if goal:
         lines.append(f"\nHidden-goal protocol: {'; '.join(sorted(goal))}.\n")
+    return lines
 
+
+def _domain_lines(results: list[Results], table: str, plateau_shots: int, with_success: bool, model_card: bool,
+                  figures: Path) -> list[str]:
+    """The per-domain section: each folder's shot-1 and converged IQM per domain, and the domain's figure."""
+    lines: list[str] = []
     per_label = ["shot 1", "converged"] + (["success shot 1", "success converged"] if with_success else [])
-    card = model_card_scores() if model_card else {}
     lines += ["\n## Per domain\n",
               f"| domain ({table}-normalized) | "
               + " | ".join(f"{markdown_text(r.label)}: {c}" for r in results for c in per_label)
@@ -554,6 +543,30 @@ def _write_report(folders: list[Path], out: Path, figures: Path, table: str, giv
     lines.append("")
     for domain in domains:
         lines.append(f"![{markdown_text(domain)}](figures/domain-{file_name(domain)}.png)")
+    return lines
+
+
+def _write_report(folders: list[Path], out: Path, figures: Path, table: str, given_plateau_shots: int | None,
+                  model_card: bool, gap_shots: tuple[int, int] | None) -> WrittenReport:
+    loaded = [load_results(Path(folder), table) for folder in folders]
+    results = [r for r, _ in loaded]
+    notes = [n for _, ns in loaded for n in ns]
+    if not any(r.scores for r in results):
+        raise VintixError(f"no task of {', '.join(map(str, folders))} has a '{table}' reference score to normalize "
+                          f"with: {' '.join(notes)}")
+    most = max(scores.shape[1] for r in results for scores in r.scores.values())
+    if given_plateau_shots is not None and given_plateau_shots > most:
+        raise VintixError(f"--plateau-shots {given_plateau_shots} is more shots than the runs have (at most {most}); "
+                          f"choose at most {most} (left out, it is {PLATEAU_SHOTS}, or all the shots of a shorter run)")
+    plateau_shots = given_plateau_shots or PLATEAU_SHOTS
+    labels = [r.label for r in results]
+    if len(set(labels)) < len(labels):  # the same checkpoint evaluated twice: tell them apart
+        for r in results:
+            r.label = f"{r.label} ({r.folder.name})"
+    with_success = any(r.success for r in results)
+    lines = _header_lines(results, table, plateau_shots, with_success)
+    lines += _domain_lines(results, table, plateau_shots, with_success, model_card, figures)
+    card = model_card_scores() if model_card else {}
 
     # The goal-blind expert's success (demonstrators/goal_blind.csv) beside shot 1 and converged: what a
     # model reaches without reading a single reward; and, for tasks measured by return (the meta-RL ones), the

@@ -17,7 +17,7 @@ import math
 import os
 import shutil
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, TypeVar
@@ -626,17 +626,7 @@ class Trainer:
         if self.dist.world_size > 1:
             dist.all_reduce(peak)  # every rank's share of the machine, measured at the same time
         if self.dist.is_main:
-            n_params = count_parameters(self.model)
-            where = f"resuming from {self.resumed_from}" if self.resumed_from else "starting fresh"
-            print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
-                  f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device} "
-                  f"({torch.get_num_threads()} CPU thread(s) each{'' if cfg.threads else ': --threads to choose'}); "
-                  f"{where} at step {self.step}")
-            if cfg.expert_distillation:  # the ED ablation, or (on every row) the recorded-target objective
-                print("demonstrator-action targets: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
-            for note in window_sizing_notes(self.data, self.window_len, self.model.config.keep_first_steps,
-                                            cfg.select_shots if cfg.select_every else None):
-                print(f"note: {note}")
+            self._announce(groups)
         # Per group: summed window loss, windows, training FLOPs since the last log line.
         sums = torch.zeros(len(groups), 3, dtype=torch.float64, device=self.device)
         # disable=None: quiet when not on a terminal, where each redraw would be a line of the log
@@ -652,37 +642,7 @@ class Trainer:
         try:
             stop_request = signals.enter_context(stopping)
             while self.step < stop:
-                lr = learning_rate(self.step, cfg)
-                for param_group in self.optimizer.param_groups:
-                    param_group["lr"] = lr
-                for micro in range(cfg.grad_accum):
-                    batch = batch_to(next(batches), self.device)
-                    # DDP all-reduces the gradients of the last micro-batch only.
-                    unsynced = (self.loss_module.no_sync()
-                                if isinstance(self.loss_module, nn.parallel.DistributedDataParallel)
-                                and micro < cfg.grad_accum - 1 else contextlib.nullcontext())
-                    with unsynced, precision_context(self.device):
-                        losses = self.loss_module(batch)
-                    (losses.mean() / cfg.grad_accum).backward()
-                    start = 0
-                    for group, part in batch.items():
-                        n = part["obs"].shape[0]
-                        totals = sums[group_index[group]]
-                        totals[0] += losses[start : start + n].detach().double().sum()
-                        totals[1] += n
-                        totals[2] += n * self.window_len * self.flops[group]
-                        start += n
-                grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
-                # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.
-                if not torch.isfinite(grad_norm):
-                    raise NonFiniteLossError(
-                        f"step {self.step + 1}: the loss or its gradient is not finite (last micro-batch loss "
-                        f"{float(losses.detach().mean()):.4g}, gradient norm {float(grad_norm):.4g}); training stopped "
-                        f"before the optimizer step, so no NaN reached the weights; {self._last_good()}")
-                self.optimizer.step()
-                self.optimizer.zero_grad(set_to_none=True)
-                self.step += 1
-                self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
+                lr, grad_norm = self._optimizer_step(batches, group_index, sums)
                 progress.update(1)
                 selection = Selection(math.nan)
                 if cfg.select_every and self.step % cfg.select_every == 0 and self.dist.is_main:
@@ -728,6 +688,59 @@ class Trainer:
             print(f"step {self.step}: checkpoints under {self.out / 'checkpoints'}, log {log.path}"
                   + (f", TensorBoard {self.out / 'tensorboard'}" if cfg.tensorboard else "") + best)
         return last_dir if last_dir is not None else checkpoint_dir(self.out, self.step)
+
+    def _announce(self, groups: list[str]) -> None:
+        """What the run trains, on what, where, from which step; which rows are targets; sizing notes."""
+        cfg = self.config
+        n_params = count_parameters(self.model)
+        where = f"resuming from {self.resumed_from}" if self.resumed_from else "starting fresh"
+        print(f"training {cfg.model} ({n_params / 1e6:.2f}M parameters) on {len(self.data.tasks)} tasks / "
+              f"{len(groups)} groups, {self.dist.world_size} process(es) on {self.device} "
+              f"({torch.get_num_threads()} CPU thread(s) each{'' if cfg.threads else ': --threads to choose'}); "
+              f"{where} at step {self.step}")
+        if cfg.expert_distillation:  # the ED ablation, or (on every row) the recorded-target objective
+            print("demonstrator-action targets: " + "; ".join(f"{t.name}: {t.rows}" for t in self.data.tasks))
+        for note in window_sizing_notes(self.data, self.window_len, self.model.config.keep_first_steps,
+                                        cfg.select_shots if cfg.select_every else None):
+            print(f"note: {note}")
+
+    def _optimizer_step(self, batches: Iterator[Batch], group_index: dict[str, int],
+                        sums: torch.Tensor) -> tuple[float, torch.Tensor]:
+        """One optimizer step over `grad_accum` micro-batches, adding each group's loss, windows and FLOPs to `sums`;
+        returns the learning rate and the gradient norm. A non-finite gradient stops the run before the step."""
+        cfg = self.config
+        lr = learning_rate(self.step, cfg)
+        for param_group in self.optimizer.param_groups:
+            param_group["lr"] = lr
+        for micro in range(cfg.grad_accum):
+            batch = batch_to(next(batches), self.device)
+            # DDP all-reduces the gradients of the last micro-batch only.
+            unsynced = (self.loss_module.no_sync()
+                        if isinstance(self.loss_module, nn.parallel.DistributedDataParallel)
+                        and micro < cfg.grad_accum - 1 else contextlib.nullcontext())
+            with unsynced, precision_context(self.device):
+                losses = self.loss_module(batch)
+            (losses.mean() / cfg.grad_accum).backward()
+            start = 0
+            for group, part in batch.items():
+                n = part["obs"].shape[0]
+                totals = sums[group_index[group]]
+                totals[0] += losses[start : start + n].detach().double().sum()
+                totals[1] += n
+                totals[2] += n * self.window_len * self.flops[group]
+                start += n
+        grad_norm = torch.nn.utils.clip_grad_norm_(self.model.parameters(), cfg.grad_clip or math.inf)
+        # One NaN gradient would turn every weight NaN at this step; the norm is the same on every rank.
+        if not torch.isfinite(grad_norm):
+            raise NonFiniteLossError(
+                f"step {self.step + 1}: the loss or its gradient is not finite (last micro-batch loss "
+                f"{float(losses.detach().mean()):.4g}, gradient norm {float(grad_norm):.4g}); training stopped "
+                f"before the optimizer step, so no NaN reached the weights; {self._last_good()}")
+        self.optimizer.step()
+        self.optimizer.zero_grad(set_to_none=True)
+        self.step += 1
+        self.tokens += cfg.grad_accum * cfg.batch_size * self.window_len * self.dist.world_size
+        return lr, grad_norm
 
     def _run_callbacks(self) -> None:
         due = [fn for every, fn in self.callbacks if self.step % every == 0]
