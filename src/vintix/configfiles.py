@@ -17,6 +17,8 @@ from typing import Any
 
 import yaml
 
+from vintix.atomic import read_regular_text
+
 BASE_KEY = "base"
 
 
@@ -32,7 +34,7 @@ def merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
 def read_mapping(path: Path, error: type[Exception], what: str) -> dict[str, Any]:
     """The mapping a YAML file holds (empty for an empty file), or `error` naming the file."""
     try:
-        fields = yaml.safe_load(path.read_text()) or {}
+        fields = yaml.safe_load(read_regular_text(path)) or {}
     except (yaml.YAMLError, UnicodeDecodeError) as problem:
         raise error(f"{path}: not valid YAML ({' '.join(str(problem).split())})") from None
     if not isinstance(fields, dict):

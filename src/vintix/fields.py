@@ -21,6 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+from vintix.atomic import read_regular_text
 from vintix.errors import json_loads
 
 T = TypeVar("T")
@@ -155,7 +156,7 @@ def read_json_file(path: Path, schema: type[T], error: type[Exception], fix: str
     does not name ignored (a newer writer's). `error` names the file, the field and the type it expected, then
     `fix`; a file that is not JSON, or not an object, likewise."""
     try:
-        data = json_loads(path.read_text())
+        data = json_loads(read_regular_text(path))  # a FIFO in a file's place is an error, not a hang
     except (json.JSONDecodeError, UnicodeDecodeError) as problem:
         raise error(f"{path}: not valid JSON ({problem}); {fix}") from None
     if not isinstance(data, dict):

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import hashlib
+import io
 import re
 import shutil
 from collections import defaultdict
@@ -109,7 +110,8 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     runs: dict[str, dict[tuple[int, str], dict[int, tuple[float, float]]]] = defaultdict(lambda: defaultdict(dict))
     domains, tasks, refs, missing = {}, {}, {}, []
     fed: set[str] = set()  # the reward_input column's values
-    with episodes.open() as f:
+    content = episodes.read_bytes()  # read once: parsed here, its hash checked against run.json below
+    with io.TextIOWrapper(io.BytesIO(content)) as f:
         reader = csv.DictReader(f)
         lacking = sorted(EPISODE_COLUMNS - set(reader.fieldnames or []))
         if lacking:
@@ -156,7 +158,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     notes = [f"{folder}: " + missing_reference_note(missing, table)] if missing else []
     reward_input = _reward_input(episodes, fed, run)
     recorded = run.get("episodes_sha256")  # results written before the hash existed are read as they are
-    if recorded is not None and recorded != hashlib.sha256(episodes.read_bytes()).hexdigest():
+    if recorded is not None and recorded != hashlib.sha256(content).hexdigest():
         raise VintixError(f"{folder}: {EPISODES_FILE} is not the one {RUN_FILE} describes (its sha256 differs): the "
                           f"folder mixes the files of two runs, so its results would be reported under the wrong "
                           f"model or settings; {rewrite}")
