@@ -356,6 +356,7 @@ DATA.update({
     "discrete-json": damaged_data("discrete-json", rewrite_json(lambda m: m.update(action_type="discrete"))),
     "text-dims-json": damaged_data("text-dims-json", rewrite_json(lambda m: m.update(action_dim="4"))),
     "json-list": damaged_data("json-list", lambda f: (f / "reach-v3.json").write_text("[1, 2]")),
+    "shape-list-json": damaged_data("shape-list-json", rewrite_json(lambda m: m.update(observation_shape=[39]))),
     "json-not-utf8": damaged_data("json-not-utf8", lambda f: (f / "reach-v3.json").write_bytes(b"\xff\xfe{")),
     "float64-reward": damaged_data("float64-reward", float64_history),
     "bytes-reward": damaged_data("bytes-reward", bytes_reward_history),
@@ -476,6 +477,10 @@ CHECKPOINTS = {
         d / "config.json").write_text(json.dumps({**json.loads((d / "config.json").read_text()), field: value})))
        for field, kind, value in [("custom_tasks", "a-list", ["reach-v3"]), ("config", "a-list", [1, 2]),
                                   ("groups", "an-object", {"metaworld": 1}), ("task_norms", "text", "none")]},
+    # ...and the record the model card shows (issue 71, class 4): a text step was a traceback at the next save.
+    "extra-step-is-text": damaged_checkpoint("extra-step-is-text", lambda d: (d / "config.json").write_text(json.dumps(
+        {**json.loads((d / "config.json").read_text()),
+         "extra": {**json.loads((d / "config.json").read_text())["extra"], "step": "many"}}))),
     "config-text-heads": damaged_checkpoint("config-text-heads", lambda d: (d / "config.json").write_text(json.dumps(
         {**json.loads((d / "config.json").read_text()),
          "config": {**json.loads((d / "config.json").read_text())["config"], "n_heads": "2"}}))),
@@ -558,7 +563,8 @@ DAMAGE_NAMES = {
     "garbage-json": ("not valid JSON",) * 2, "missing-json": ("missing task metadata", None),
     "partial-leftover": ("leftover of an interrupted write", None), "empty-h5": ("history-0005.h5",) * 2,
     "foreign-entry": ("'notes' is not a step group",) * 2, "discrete-json": ("action_type",) * 2,
-    "text-dims-json": ("action_dim must be a positive integer", None), "json-list": ("needs keys", None),
+    "text-dims-json": ("field 'action_dim' must be int", None), "json-list": ("expected a JSON object, got list", None),
+    "shape-list-json": ("field 'observation_shape' must be dict", None),
     "json-not-utf8": ("not valid JSON",) * 2, "float64-reward": ("reward is float64",) * 2,
     "bytes-reward": ("reward is |S",) * 2,
     "not-hdf5": ("history-0001.h5",) * 2, "nan-demonstrator-action": ("NaN/inf in demonstrator_action",) * 2,

@@ -257,6 +257,9 @@ def test_metadata_round_trip_and_errors(tmp_path):
         read_task_metadata(task_dir)
     assert error.value.path == path
     path.write_text(json.dumps({**meta, "action_dim": "3"}))
+    with pytest.raises(DatasetError, match="field 'action_dim' must be int, got \"3\""):
+        read_task_metadata(task_dir)
+    path.write_text(json.dumps({**meta, "action_dim": 0}))
     with pytest.raises(DatasetError, match="action_dim must be a positive integer"):
         read_task_metadata(task_dir)
 

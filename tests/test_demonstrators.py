@@ -340,7 +340,7 @@ def rewrite_json(name, change):
 
 @pytest.mark.parametrize(("damage", "message"), [
     (lambda f: (f / "mujoco-reacher.json").write_text("{"), "mujoco-reacher.json: not valid JSON"),
-    (lambda f: (f / "mujoco-reacher.json").write_text("[]"), "not a demonstrator's metadata"),
+    (lambda f: (f / "mujoco-reacher.json").write_text("[]"), "mujoco-reacher.json: expected a JSON object, got list"),
     (rewrite_json("mujoco-reacher", lambda m: {**m, "algorithm": "DQN"}), "algorithm 'DQN' is not one of PPO, SAC"),
     (rewrite_json("mujoco-reacher", lambda m: {**m, "policy_kwargs": {"net_arch": [10**9]}}),
      r"net_arch \[1000000000\] has layer widths that no tensor"),

@@ -446,6 +446,7 @@ for damage, needle in [("truncated-weights", "truncated or damaged"), ("garbage-
                        ("config-is-a-list", "field 'config' must be dict[str, Any], got [1, 2]"),
                        ("groups-is-an-object", "field 'groups' must be list[dict[str, Any]]"),
                        ("task_norms-is-text", "field 'task_norms' must be list[dict[str, Any]], got \"none\""),
+                       ("extra-step-is-text", "field 'extra.step' must be int, got \"many\""),
                        ("no-weights", "model.safetensors is not"), ("future-format", "checkpoint format 99"),
                        ("groups-malformed", "does not describe a model"), ("config-text-heads", "n_heads must be int"),
                        ("weights-of-another-model", "does not fit the model")]:

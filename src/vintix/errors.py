@@ -82,6 +82,12 @@ def local_or_shipped(given: str | os.PathLike[str], shipped: bool, what: str) ->
     return exists or not shipped
 
 
+def at_file(error: type[Exception]) -> Callable[[Path, str], Exception]:
+    """An error class that takes one message, as a JSON reader's error (`vintix.fields.FileError`): given a file and
+    its problem, the message "<file>: <problem>"."""
+    return lambda path, problem: error(f"{path}: {problem}")
+
+
 def json_loads(text: str) -> Any:
     """`json.loads`, where a file nested too deeply for Python's parser (a RecursionError, from a hostile file of
     a few hundred kilobytes) is a `json.JSONDecodeError` like any other malformed JSON, for its reader to name."""

@@ -150,28 +150,46 @@ def capped_threads(requested: int, note: Callable[[str], object]) -> int:
     return cores
 
 
-def read_json_file(path: Path, schema: type[T], error: type[Exception], fix: str) -> T:
-    """The JSON object in the file at `path` as the dataclass `schema`, the one way every JSON file vintix reads is
-    checked: each field present unless it has a default, each of its annotated type (`_coerce`), keys the schema
-    does not name ignored (a newer writer's). `error` names the file, the field and the type it expected, then
-    `fix`; a file that is not JSON, or not an object, likewise."""
+FileError = Callable[[Path, str], Exception]
+"""How a JSON reader raises: given the file and "<problem>; <fix>" (`DatasetError` is one; `errors.at_file` makes
+one of an error class that takes a single message)."""
+
+
+def read_json_object(path: Path, error: FileError, fix: str) -> dict[str, Any]:
+    """The JSON object in the file at `path`, or `error` for a file that is not JSON or not an object. Read through
+    `read_regular_text`: a FIFO in a file's place is an error, not a hang."""
     try:
-        data = json_loads(read_regular_text(path))  # a FIFO in a file's place is an error, not a hang
+        data = json_loads(read_regular_text(path))
     except (json.JSONDecodeError, UnicodeDecodeError) as problem:
-        raise error(f"{path}: not valid JSON ({problem}); {fix}") from None
+        raise error(path, f"not valid JSON ({problem}); {fix}") from None
     if not isinstance(data, dict):
-        raise error(f"{path}: expected a JSON object, got {type(data).__name__}; {fix}")
+        raise error(path, f"expected a JSON object, got {type(data).__name__}; {fix}")
+    return data
+
+
+def checked_fields(data: dict[str, Any], schema: type[T], path: Path, error: FileError, fix: str,
+                   within: str = "") -> T:
+    """`data` (a JSON object read from `path`) as the dataclass `schema`: each field present unless it has a default,
+    each of its annotated type (`_coerce`), keys the schema does not name ignored (a newer writer's). `error` names
+    the file, the field (inside the object `within`, if given) and the type it expected, then `fix`."""
     hints = typing.get_type_hints(schema)
     values = {}
     for field in dataclasses.fields(schema):  # type: ignore[arg-type]
+        name = f"{within}.{field.name}" if within else field.name
         if field.name not in data:
             if field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING:
-                raise error(f"{path}: no field {field.name!r} ({type_name(hints[field.name])}); {fix}")
+                raise error(path, f"no field {name!r} ({type_name(hints[field.name])}); {fix}")
             continue
         converted = _coerce(data[field.name], hints[field.name])
         if converted is _INVALID:
             shown = json.dumps(data[field.name], default=str)
-            raise error(f"{path}: field {field.name!r} must be {type_name(hints[field.name])}, got "
-                        f"{shown if len(shown) <= 60 else shown[:59] + '…'}; {fix}")
+            raise error(path, f"field {name!r} must be {type_name(hints[field.name])}, got "
+                              f"{shown if len(shown) <= 60 else shown[:59] + '…'}; {fix}")
         values[field.name] = converted
     return schema(**values)
+
+
+def read_json_file(path: Path, schema: type[T], error: FileError, fix: str) -> T:
+    """The JSON object in the file at `path` as the dataclass `schema`, the one way every JSON file vintix reads is
+    checked (`read_json_object`, then `checked_fields`)."""
+    return checked_fields(read_json_object(path, error, fix), schema, path, error, fix)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,10 +15,27 @@ from vintix.data.layout import (
     PathLike,
     is_dim,
 )
-from vintix.errors import DatasetError, VintixError, json_loads
+from vintix.errors import DatasetError, VintixError
+from vintix.fields import checked_fields, read_json_object
 from vintix.tasks.custom import register_specs
 
-_REQUIRED_KEYS = ("task_name", "observation_shape", "action_dim", "action_type")
+
+@dataclass
+class TaskFile:
+    """A task JSON's required fields, as `read_task_metadata` checks them (the official layout; the file may hold
+    more: ``reward_scale``, ``group``, a task of your own's ``custom_task``)."""
+
+    task_name: str
+    """the registry's name of the task"""
+    observation_shape: dict[str, Any]
+    """``{"proprio": [obs_dim]}``"""
+    action_dim: int
+    """action channels, or a discrete task's number of actions"""
+    action_type: str
+    """'continuous' (or 'discrete', vintix's extension)"""
+
+
+_REQUIRED_KEYS = tuple(field.name for field in dataclasses.fields(TaskFile))
 
 
 def task_directory(root: PathLike, domain: str, task_dir_name: str) -> Path:
@@ -47,27 +65,24 @@ def write_task_metadata(task_dir: PathLike, task_name: str, obs_dim: int, act_di
 
 
 def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
-    """Load and check the task JSON; see `metadata_dims` for the dims it declares."""
+    """Load and check the task JSON (`TaskFile`, through `vintix.fields.read_json_file`); see `metadata_dims` for the
+    dims it declares."""
     path = metadata_path(task_dir)
     fix = "fix it or rewrite it with vintix.data.write_task_metadata()"
     if not path.is_file():
         raise DatasetError(
             path, f"missing task metadata (keys {list(_REQUIRED_KEYS)}); write it with write_task_metadata()"
         )
-    try:
-        meta = json_loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise DatasetError(path, f"not valid JSON ({err}); {fix}") from err
-    if not isinstance(meta, dict) or any(key not in meta for key in _REQUIRED_KEYS):
-        raise DatasetError(path, f"needs keys {list(_REQUIRED_KEYS)}; {fix}")
-    proprio = meta["observation_shape"].get("proprio") if isinstance(meta["observation_shape"], dict) else None
+    meta = read_json_object(path, DatasetError, fix)
+    task = checked_fields(meta, TaskFile, path, DatasetError, fix)
+    proprio = task.observation_shape.get("proprio")
     checks = {
-        "task_name must be a non-empty string": isinstance(meta["task_name"], str) and meta["task_name"],
+        "task_name must be a non-empty string": task.task_name,
         "observation_shape must be {'proprio': [obs_dim]}": (
             isinstance(proprio, list) and len(proprio) == 1 and is_dim(proprio[0])
         ),
-        "action_dim must be a positive integer": is_dim(meta["action_dim"]),
-        "action_type must be 'continuous' (or 'discrete', vintix's extension)": meta["action_type"] in ACTION_TYPES,
+        "action_dim must be a positive integer": is_dim(task.action_dim),
+        "action_type must be 'continuous' (or 'discrete', vintix's extension)": task.action_type in ACTION_TYPES,
     }
     for rule, ok in checks.items():
         if not ok:

@@ -36,7 +36,8 @@ from stable_baselines3.sac.policies import SACPolicy
 
 from vintix.atomic import atomic_save_tensors, atomic_write_text
 from vintix.demonstrators.base import expert_name, goal_observed
-from vintix.errors import VintixError, json_loads
+from vintix.errors import VintixError, at_file
+from vintix.fields import read_json_object
 from vintix.tasks import TaskSpec, action_box, get_task, list_tasks, make_env
 from vintix.tasks.meta_mujoco import with_goal_observed
 
@@ -98,11 +99,8 @@ def _read_weights(tensors_path: Path, meta_path: Path) -> tuple[dict[str, Any], 
     """A demonstrator's metadata and tensors, or a named error for a damaged or foreign pair. Layer widths
     in the metadata are checked against the tensors before SB3 builds anything: a width that no tensor
     has cannot load, and an absurd one would exhaust memory building the policy."""
-    try:
-        metadata = json_loads(meta_path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise VintixError(f"{meta_path}: not valid JSON ({error}); {_RESAVE}") from None
-    if not isinstance(metadata, dict) or not isinstance(metadata.get("policy_kwargs"), dict):
+    metadata = read_json_object(meta_path, at_file(VintixError), _RESAVE)
+    if not isinstance(metadata.get("policy_kwargs"), dict):
         raise VintixError(f"{meta_path}: not a demonstrator's metadata (a JSON object with 'algorithm' and "
                           f"'policy_kwargs'); {_RESAVE}")
     if metadata.get("algorithm") not in ALGORITHMS:

@@ -36,7 +36,7 @@ from vintix.agent import Agent
 from vintix.atomic import atomic_write_text, check_output_kind, check_output_path, check_replaceable, folder_lock
 from vintix.data.discovery import find_tasks
 from vintix.data.reader import LearningHistory
-from vintix.errors import OutputPathError, UnknownTaskError, VintixError
+from vintix.errors import OutputPathError, UnknownTaskError, VintixError, at_file
 from vintix.evaluate.config import (
     ML1_ADAPTATION_SHOTS,
     ML1_SCORED_SHOTS,
@@ -415,7 +415,7 @@ def check_results_folder(out: Path, identity: dict[str, Any], overwrite: bool) -
     re-run of the same run may replace its own results, anything else needs `overwrite`. Called with `out`
     locked, whose entries the lock checked (no FIFO or link is read)."""
     try:
-        run: dict[str, Any] | None = asdict(read_json_file(out / RUN_FILE, RunFile, VintixError, ""))
+        run: dict[str, Any] | None = asdict(read_json_file(out / RUN_FILE, RunFile, at_file(VintixError), ""))
     except (OSError, VintixError):  # none, or not one vintix could have written: the general rule below
         run = None
     if run is not None and _identity_of(run) == identity:

@@ -28,8 +28,8 @@ import torch
 from safetensors.torch import load_file
 
 from vintix.atomic import atomic_save_tensors, atomic_write_text
-from vintix.errors import DeviceError, VintixError
-from vintix.fields import read_json_file
+from vintix.errors import DeviceError, VintixError, at_file
+from vintix.fields import checked_fields, read_json_file
 from vintix.memory import build_within_memory
 from vintix.model.model import GroupSpec, ModelConfig, TaskNorm, Vintix, count_parameters, estimated_parameters
 from vintix.tasks import list_tasks
@@ -181,13 +181,48 @@ class CheckpointFile:
     """the specs of the tasks of your own it was trained on (`vintix.tasks.custom`)"""
 
 
+@dataclass
+class TrainingRecord:
+    """The fields of a checkpoint's ``extra`` that vintix reads back (the model card shows them, resume and the
+    agent read some), each checked like `CheckpointFile`'s; ``extra`` may hold more."""
+
+    step: int = 0
+    """the optimizer steps it was trained for"""
+    tokens: int = 0
+    """the training tokens it saw"""
+    trained_tasks: list[str] = field(default_factory=list)
+    """the tasks of its dataset"""
+    dataset: str | None = None
+    """its dataset's folder, relative to the run folder"""
+    dataset_fingerprint: str | None = None
+    """the content key of its dataset's histories (`vintix.train.data.content_fingerprint`)"""
+    in_context_score: float | None = None
+    """the selection's in-context score, where this is a run's best checkpoint"""
+    reward_use_gap: float | None = None
+    """the selection's reward-use gap, where it measured one"""
+    select_metric: str = "score"
+    """what the selection ranked by"""
+    select_tasks: list[str] = field(default_factory=list)
+    """the tasks the selection played"""
+    train_config: dict[str, Any] = field(default_factory=dict)
+    """the TrainConfig's fields"""
+    init_from_sha256: str | None = None
+    """the weights it was fine-tuned from (`weights_sha256`)"""
+    official: dict[str, Any] = field(default_factory=dict)
+    """where it was imported from the authors' release: the file's sha256 and the metadata's"""
+
+
 def read_metadata(directory: str | os.PathLike[str]) -> dict[str, Any]:
-    """The JSON half of a checkpoint, each field of the type `CheckpointFile` gives it."""
+    """The JSON half of a checkpoint, each field of the type `CheckpointFile` gives it, and its ``extra`` checked
+    against `TrainingRecord`."""
     found = checkpoint_config_path(directory)
     if found is None:
         raise CheckpointError(f"{directory}: no {CONFIG_FILE}; is this a checkpoint directory written by vintix?")
-    meta = read_json_file(found, CheckpointFile, CheckpointError, "the checkpoint is damaged or not vintix's: re-save "
-                          "it, or use another")
+    damaged = at_file(CheckpointError)
+    fix = "the checkpoint is damaged or not vintix's: re-save it, or use another"
+    meta = read_json_file(found, CheckpointFile, damaged, fix)
+    record = dataclasses.asdict(checked_fields(meta.extra, TrainingRecord, found, damaged, fix, within="extra"))
+    meta.extra.update({key: record[key] for key in meta.extra if key in record})  # as converted; no key added
     if meta.format_version != FORMAT_VERSION:
         raise CheckpointError(
             f"{found}: checkpoint format {meta.format_version}, this vintix reads format {FORMAT_VERSION}"

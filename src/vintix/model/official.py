@@ -32,7 +32,8 @@ import numpy as np
 import torch
 
 from vintix.atomic import atomic_path, atomic_write_text, check_free_space, check_replaceable, folder_lock
-from vintix.errors import json_loads
+from vintix.errors import at_file
+from vintix.fields import read_json_object
 from vintix.model.checkpoint import (
     WEIGHTS_FILE,
     CheckpointError,
@@ -340,13 +341,7 @@ def _read_json(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise OfficialFormatError(f"{path.parent}: no {path.name}; a release snapshot holds {WEIGHTS}, {CONFIG} "
                                   f"and {METADATA} (hf download dunnolab/Vintix --local-dir DIR)")
-    try:
-        data = json_loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise OfficialFormatError(f"{path}: not valid JSON ({error}); download the snapshot again") from error
-    if not isinstance(data, dict):
-        raise OfficialFormatError(f"{path}: a JSON object expected, got {type(data).__name__}")
-    return data
+    return read_json_object(path, at_file(OfficialFormatError), "download the snapshot again")
 
 
 def _load_official_weights(path: Path) -> dict[str, torch.Tensor]:

@@ -44,7 +44,7 @@ from vintix.atomic import (
     folder_lock,
 )
 from vintix.demonstrators.goal_blind import read_goal_blind
-from vintix.errors import VintixError, printable
+from vintix.errors import VintixError, at_file, printable
 from vintix.evaluate.config import PLATEAU_SHOTS, RunFile
 from vintix.evaluate.run import EPISODES_FILE, RUN_FILE
 from vintix.evaluate.summary import (
@@ -104,7 +104,7 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     if not episodes.is_file() or not run_file.is_file():
         raise VintixError(f"{folder}: no {EPISODES_FILE} and {RUN_FILE}; point to a folder written by `vintix eval`")
     rewrite = "re-run `vintix eval` into this folder"
-    run = dataclasses.asdict(read_json_file(run_file, RunFile, VintixError, rewrite))
+    run = dataclasses.asdict(read_json_file(run_file, RunFile, at_file(VintixError), rewrite))
     register_specs(run.get("custom_tasks", {}), str(run_file))  # your own tasks travel with their results
     # variant -> run (seed, prompt) -> shot -> (normalized score, success flag or NaN)
     runs: dict[str, dict[tuple[int, str], dict[int, tuple[float, float]]]] = defaultdict(lambda: defaultdict(dict))
