@@ -23,7 +23,9 @@ install: $(INSTALLED)
 # (Meta-World button-press, MuJoCo Pusher, Industrial Benchmark) it plays like its demonstrators either way. Beside
 # it, vintix-cpu-meta (the flagship fine-tuned with the meta-RL tasks) on HalfCheetah-Vel, HalfCheetah-Dir and
 # Ant-Dir, whose target velocity or direction only the rewards tell; the Dark Room model on AD^ε's 16 held-out goals
-# and the Key-to-Door model on 16 held-out (key, door) pairs (the discrete benchmarks; their TRAINING.md).
+# and the Key-to-Door model on 16 held-out (key, door) pairs (the discrete benchmarks; their TRAINING.md); last, a
+# model that learnt with no search written for its task, point-goal-dpt (DPT's target: a goal-aware expert's action
+# behind random and then its own contexts) on 30 hidden goals of the toy task.
 # Per-shot tables of score and success rate, then a report with the reward-use gap per task, under demo/; the last
 # lines give each run's gap (true − zero) per domain with its CI and shots. No training. Each eval runs on one
 # thread, so the zero-reward eval runs beside the true-reward one on the second core (its table is printed after),
@@ -34,7 +36,8 @@ DEMO_RUNS := hidden-goals:vintix-cpu:reach-v3,pick-place-v3,Reacher-hidden-v5:10
 	visible-goals:vintix-cpu:button-press-v3,Pusher-v5,industrial-benchmark-30-v1:3 \
 	meta-rl:vintix-cpu-meta:HalfCheetah-Vel-v5,HalfCheetah-Dir-v5,Ant-Dir-v5:5 \
 	darkroom:darkroom:DarkRoom-heldout-v0:16 \
-	keytodoor:keytodoor:KeyToDoor-heldout-v0:16
+	keytodoor:keytodoor:KeyToDoor-heldout-v0:16 \
+	dpt:point-goal-dpt:point-goal-v1:30
 DEMO_EVAL := --shots 10 --first-seed 100 --reference ours
 demo: $(INSTALLED)
 	mkdir -p $(DEMO)/logs

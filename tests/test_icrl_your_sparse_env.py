@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_icrl_your_env import follow_page, success_by_shot
+from test_icrl_your_env import follow_page, mean_by_shot
 
 PAGE = Path(__file__).parents[1] / "docs" / "icrl-your-sparse-env.md"
 
@@ -16,7 +16,7 @@ PAGE = Path(__file__).parents[1] / "docs" / "icrl-your-sparse-env.md"
 @pytest.mark.slow
 def test_following_the_page_gives_a_model_that_finds_a_sparse_goal_from_its_rewards(tmp_path):
     assert follow_page(PAGE, tmp_path) == {"sparse_goal.py", "tasks.yaml", "recipe.yaml", "train.yaml"}
-    true, zero = success_by_shot(tmp_path / "results" / "true"), success_by_shot(tmp_path / "results" / "zero")
+    true, zero = mean_by_shot(tmp_path / "results" / "true"), mean_by_shot(tmp_path / "results" / "zero")
     later = [2, 3, 4, 5, 6]
     assert np.mean([true[s] - zero[s] for s in later]) >= 0.5  # the rewards, not the context's length, do it
     assert (tmp_path / "report" / "report.md").is_file() and (tmp_path / "goal-blind.csv").is_file()
