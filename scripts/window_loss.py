@@ -7,7 +7,11 @@ say the model generalizes its imitation to new goals, so a closed-loop failure c
 with its own actions in context (compounding errors, contexts unlike its training ones); a much larger
 loss on the new goals says it memorized the training histories.
 
-    python scripts/window_loss.py CHECKPOINT DATA [DATA ...] [--windows 64] [--seed 123]
+    python scripts/window_loss.py CHECKPOINT DATA [DATA ...] [--windows 64] [--seed 123] [--by-position]
+
+`--by-position` gives the loss at positions of the window instead (a window's first token sees nothing before it,
+its last the whole window): a loss that stops falling after a few positions says the model uses only the latest
+steps of its context, whatever the window holds.
 
 The windows, targets and tasks are the checkpoint's training settings (`train_config` in its
 config.json: window length, expert distillation, the tasks it was trained on).
@@ -31,16 +35,30 @@ BATCH = 16
 """Windows per forward pass."""
 
 
-def task_losses(model: Vintix, extra: dict[str, Any], root: str, windows: int, seed: int) -> dict[str, np.ndarray]:
+class PositionLoss(WindowLoss):
+    """`WindowLoss` left per position: ``[windows, positions]``."""
+
+    def forward(self, batch: Any) -> torch.Tensor:
+        groups = list(batch)
+        tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"],
+                                   b.get("prev_return")) for g, b in batch.items()]
+        hidden = self.model.backbone(torch.cat(tokens))
+        losses = [self.model.action_head(group).loss(part, batch[group]["action"])
+                  for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True)]
+        return torch.cat([loss.reshape(*loss.shape[:2], -1).mean(dim=2) for loss in losses])
+
+
+def task_losses(model: Vintix, extra: dict[str, Any], root: str, windows: int, seed: int,
+                by_position: bool = False) -> dict[str, np.ndarray]:
     """Per-window loss of `model`, whose checkpoint records `extra` (its tasks and training config), on
-    about `windows` windows a task of the dataset at `root`."""
+    about `windows` windows a task of the dataset at `root`; `by_position`: each window's loss per position."""
     config = extra["train_config"]
     data = load_training_data(root, tasks=extra["trained_tasks"], expert_distillation=config["expert_distillation"],
                               expert_tail_fraction=config["expert_tail_fraction"], expert_rows=config["expert_rows"])
     dataset = WindowDataset(data, config["window_len"] or model.config.context_len, seed=seed,
                             episode_returns=model.config.episode_return)
-    loss = WindowLoss(model)
-    losses: dict[str, list[float]] = {}
+    loss = PositionLoss(model) if by_position else WindowLoss(model)
+    losses: dict[str, list[Any]] = {}
     with torch.no_grad():
         for start in range(0, windows * len(data.tasks), BATCH):
             # collate_windows stacks windows group by group (sorted by name): sorted so, the losses it
@@ -61,12 +79,18 @@ def main() -> None:
     parser.add_argument("--windows", type=int, default=64,
                         help="windows drawn per task (about: each window's task is drawn at random)")
     parser.add_argument("--seed", type=int, default=123, help="which windows are drawn")
+    parser.add_argument("--by-position", action="store_true", help="the mean loss at positions of the window")
     args = parser.parse_args()
     checkpoint = resolve_checkpoint(args.checkpoint)
     model, extra = load_pretrained(checkpoint).eval(), read_metadata(checkpoint)["extra"]
     print(f"{checkpoint}: mean loss per window ± standard error")
     for root in args.data:
-        for task, values in task_losses(model, extra, root, args.windows, args.seed).items():
+        for task, values in task_losses(model, extra, root, args.windows, args.seed, args.by_position).items():
+            if args.by_position:
+                curve = values.mean(axis=0)
+                marks = sorted({0, 1, 2, 5, 10, 20, 50, 100, 200, len(curve) - 1} & set(range(len(curve))))
+                print(f"  {root}  {task:16s} " + ", ".join(f"position {p}: {curve[p]:.3f}" for p in marks))
+                continue
             error = values.std(ddof=1) / np.sqrt(len(values)) if len(values) > 1 else float("nan")
             print(f"  {root}  {task:16s} {values.mean():.5f} ± {error:.5f}  ({len(values)} windows)")
 

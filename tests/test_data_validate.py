@@ -366,7 +366,7 @@ for bad_id in ("vintix/reach.v3-v0", "vintix//reach-v0", "vintix/reach v3-v0", "
 
 
 def dataset_with_a_fifo_history() -> Path:
-    """A clean dataset plus a FIFO named like a history, which the readers skip."""
+    """A clean dataset plus a FIFO named like a history, which the readers skipped."""
     root = work() / "data-fifo-history"
     if not root.exists():
         shutil.copytree(clean_data(), root)
@@ -376,6 +376,9 @@ def dataset_with_a_fifo_history() -> Path:
 
 cli_error("data", "validate a dataset holding a FIFO named like a history (it passed as clean)",
           lambda: ["data", "validate", dataset_with_a_fifo_history()], "not a regular file")
+# ...and stats and training, which open the dataset for use, skipped it without a word (issue 71's red team)
+cli_error("data", "stats of a dataset holding a FIFO named like a history",
+          lambda: ["data", "stats", dataset_with_a_fifo_history()], "history-0009.h5: named like a history")
 
 
 test_bad_input_ends_as_expected = bad_input_test("data")

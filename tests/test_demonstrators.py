@@ -609,6 +609,10 @@ cli_error("demonstrator", "eval --out under a file (before measuring)", lambda: 
 cli_error("demonstrator", "eval --out a directory", lambda: [
     "demonstrator", "eval", "--task", "reach-v3", "--episodes", "1", "--out", empty_dir("scores-dir")()],
     "it is a directory")
+# A file of another kind where the scores go (issue 71's red team: an eval's episodes.csv was a KeyError at the end).
+cli_error("demonstrator", "eval --out a file that is not a score table", lambda: [
+    "demonstrator", "eval", "--task", "point-goal-v1", "--episodes", "1", "--out",
+    file_at("scores-foreign", "task,shot,return\nreach-v3,1,0.5\n")()], "not a score table")
 
 
 test_bad_input_ends_as_expected = bad_input_test("demonstrator")

@@ -25,6 +25,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
     invoke,
     missing,
     model_checkpoint,
+    not_written,
     once,
     work,
     workspace,
@@ -133,6 +134,19 @@ def test_every_printed_window_is_the_window_computed_for_score_and_success_alike
     assert result.exit_code == 0, result.output
     line = next(line for line in result.output.splitlines() if line.startswith("reward-use gap"))
     assert f"+100 pp [+100, +100] success (shots {start}–{start + 1})" in line
+
+
+def test_a_gap_over_runs_of_different_lengths_compares_the_shots_both_have(two_results, tmp_path):
+    """A zero-reward run of 2 shots beside a true run of 4, no window given: the gap is over shots 1-2 and says so
+    (the true run's best window, 3-4 say, was checked against the shorter run and stopped the report)."""
+    true, zero = tmp_path / "true", tmp_path / "zero"
+    shutil.copytree(two_results / "ad", true)
+    shutil.copytree(two_results / "ad-zero", zero)
+    edit_rows(lambda rows: [r for r in rows if int(r["shot"]) <= 2])(zero)
+    result = CliRunner().invoke(app, ["report", str(true), str(zero), "--out", str(tmp_path / "report")])
+    assert result.exit_code == 0, result.output
+    said = [line for line in result.output.splitlines() if line.startswith("reward-use gap: ")]
+    assert said and all(line.endswith("(shots 1–2)") for line in said), said
 
 
 def test_gap_shots_fix_the_window_of_the_reward_use_gap(two_results, tmp_path):
@@ -406,6 +420,10 @@ def deep_run_json() -> list[object]:
 cli_error("report", "run.json nested 10^5 deep", deep_run_json, "run.json")
 cli_error("report", "a return that is text", garbage_results("text-return"), "episodes.csv")
 cli_error("report", "episodes.csv without rows", garbage_results("no-rows"), "no episodes")
+# Issue 71's red team: one folder given twice counted its runs twice, rc 0.
+cli_error("report", "one results folder given twice", lambda: [
+    "report", eval_results(), f"{eval_results()}/.", "--out", work() / "r-twice"], "given more than once",
+    after=not_written(lambda: work() / "r-twice" / "report.md"))
 
 
 @once

@@ -536,7 +536,7 @@ def demonstrator_eval(
     _use_threads(threads)
     from vintix.demonstrators import load_demonstrator
     from vintix.demonstrators.scores import UniformRandomPolicy, measure
-    from vintix.tasks.scores import record_scores, reference, scores_path
+    from vintix.tasks.scores import read_scores, record_scores, reference, scores_path
 
     if weights is not None and update_package_table:
         raise _fail(VintixError(f"--update-package-table records the shipped demonstrators, not those in {weights}: "
@@ -545,6 +545,7 @@ def demonstrator_eval(
         specs = _runnable_tasks(task)
         demonstrators = [load_demonstrator(spec.name, weights) for spec in specs]
         check_output_path(out)
+        read_scores(out)  # a file already there must be a score table: said before any episode is played
     except VintixError as error:
         raise _fail(error) from None
     command = f"vintix demonstrator eval --task {{task}} --episodes {episodes} --seed {seed}"

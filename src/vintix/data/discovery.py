@@ -120,9 +120,24 @@ def task_dirs(root: PathLike) -> list[Path]:
     return [task for domain in subdirs(root) for task in subdirs(domain)]
 
 
+NOT_A_HISTORY = "named like a history but not a regular file (a FIFO, a device, a folder or a broken link); remove it"
+"""What is wrong with an entry of a task folder named ``*.h5`` that is not a file: a reader that skipped it would
+pass a dataset with a hole in it as clean, and one that opened it could hang (a FIFO)."""
+
+
+def history_entries(task_dir: PathLike) -> tuple[list[Path], list[Path]]:
+    """The task's finished histories, sorted (``*.h5.partial`` files are unfinished and never match), and the entries
+    named like one that are not regular files (`NOT_A_HISTORY`)."""
+    named = sorted(Path(task_dir).glob("*.h5"))
+    return [p for p in named if p.is_file()], [p for p in named if not p.is_file()]
+
+
 def history_paths(task_dir: PathLike) -> list[Path]:
-    """The task's finished histories, sorted (``*.h5.partial`` files are unfinished and never match)."""
-    return sorted(p for p in Path(task_dir).glob("*.h5") if p.is_file())
+    """The task's finished histories, sorted; a DatasetError for an entry named like one that is not a file."""
+    histories, strays = history_entries(task_dir)
+    if strays:
+        raise DatasetError(strays[0], NOT_A_HISTORY)
+    return histories
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,9 @@ import h5py
 import numpy as np
 
 from vintix.data.discovery import (
+    NOT_A_HISTORY,
     find_tasks,
-    history_paths,
+    history_entries,
     metadata_dims,
     metadata_path,
     read_task_metadata,
@@ -102,10 +103,8 @@ def validate_task(task_dir: PathLike, expected_dims: ExpectedDims | None = None,
     except DatasetError as err:
         problems.append(Problem(err.path, err.problem))
     problems += [Problem(p, "leftover of an interrupted write; delete it") for p in sorted(task_dir.glob("*.partial"))]
-    # A FIFO (or a link to nothing) named like a history is no history: the readers skip it, so it would pass unseen.
-    problems += [Problem(p, "named like a history but not a regular file (a FIFO, a device or a broken link); remove "
-                            "it") for p in sorted(task_dir.glob("*.h5")) if not p.is_file()]
-    histories = history_paths(task_dir)
+    histories, strays = history_entries(task_dir)
+    problems += [Problem(p, NOT_A_HISTORY) for p in strays]
     if not histories:
         problems.append(Problem(task_dir, "no learning histories (*.h5); collect some or remove the folder"))
     for path in histories:

@@ -327,22 +327,28 @@ def reward_ablations(results: list[Results]) -> tuple[list[tuple[Results, Result
     return pairs, notes
 
 
-def _score_window(first: Results, variants: list[str], k: int) -> tuple[int, int] | None:
-    """The true run's best `k` shots of normalized score (1-based, inclusive), where every variant's is the same
-    window; None where they differ."""
-    starts = {best_k_plateau(first.scores[v].mean(axis=0), k)[1] for v in variants}
+def _shots_both_have(first: Results, other: Results, variants: list[str]) -> int:
+    """The shots every run of `first` and `other` has in `variants`: a gap compares those only (runs of different
+    lengths)."""
+    return min(min(first.scores[v].shape[1], other.scores[v].shape[1]) for v in variants)
+
+
+def _score_window(first: Results, variants: list[str], k: int, available: int) -> tuple[int, int] | None:
+    """The true run's best `k` shots of normalized score among its first `available` (1-based, inclusive), where
+    every variant's is the same window; None where they differ."""
+    starts = {best_k_plateau(first.scores[v][:, :available].mean(axis=0), k)[1] for v in variants}
     if len(starts) > 1:
         return None
-    start, length = starts.pop(), min(k, min(first.scores[v].shape[1] for v in variants))
+    start, length = starts.pop(), min(k, available)
     return start + 1, start + length
 
 
 def _window_shots(first: Results, variants: list[str], k: int, same_window: bool,
-                  shots: tuple[int, int] | None) -> str:
+                  shots: tuple[int, int] | None, available: int) -> str:
     """The shots a gap averages, as its table prints them: the fixed window, the true run's best `k` shots (one
     window, or "best k per task" where the tasks' differ), or each model's own best `k`."""
     if shots is None and same_window:
-        shots = _score_window(first, variants, k)
+        shots = _score_window(first, variants, k, available)
         if shots is None:
             return f"best {k} per task"
     if shots is not None:
@@ -365,11 +371,12 @@ def _gap_cells(first: Results, other: Results, variants: list[str], k: int, same
     score = converged_gap_with_ci([(first.scores[v], other.scores[v]) for v in variants], k, paired,
                                   same_window=same_window, shots=shots)
     with_success = all(v in first.success and v in other.success for v in variants)
-    success_shots = shots if shots is not None or not same_window else _score_window(first, variants, k)
+    available = _shots_both_have(first, other, variants)
+    success_shots = shots if shots is not None or not same_window else _score_window(first, variants, k, available)
     success = (_success_gap(*converged_gap_with_ci([(first.success[v], other.success[v]) for v in variants], k, paired,
                                                    same_window=same_window, shots=success_shots))
                if with_success else "—")
-    return [runs, _window_shots(first, variants, k, same_window, shots), _score_gap(*score), success]
+    return [runs, _window_shots(first, variants, k, same_window, shots, available), _score_gap(*score), success]
 
 
 def model_comparisons(results: list[Results]) -> list[tuple[Results, Results]]:
@@ -476,6 +483,9 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     if gap_shots is not None and not 1 <= gap_shots[0] <= gap_shots[1]:  # the runs' own length is checked later
         raise VintixError(f"--gap-shots {gap_shots[0]}-{gap_shots[1]}: shots count from 1, first <= last")
+    twice = sorted({str(f) for f in folders if sum(Path(g).resolve() == Path(f).resolve() for g in folders) > 1})
+    if twice:  # counted twice, a run's rows would be two runs in every table and mean
+        raise VintixError(f"{', '.join(twice)}: given more than once; give each results folder once")
     if gap_shots is not None and len(folders) < 2:
         raise VintixError("--gap-shots sets the shots of the reward-use gap, which compares a true-reward folder with "
                           "a zero or shuffled one of the same checkpoint: give both folders")

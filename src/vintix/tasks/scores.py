@@ -154,9 +154,17 @@ def read_scores(path: Path | None = None) -> list[MeasuredScore]:
     if not path.is_file():
         return []
     rows = csv.DictReader(path.read_text().splitlines())
-    return [MeasuredScore(task=row["task"], policy=row["policy"], mean=float(row["mean"]), std=float(row["std"]),
-                          episodes=int(row["episodes"]), seed=int(row["seed"]), env_version=row["env_version"],
-                          measured_on=row["measured_on"], command=row["command"]) for row in rows]
+    columns = [f.name for f in fields(MeasuredScore)]
+    if rows.fieldnames is None or not set(columns) <= set(rows.fieldnames):
+        raise VintixError(f"{path}: not a score table (its columns are {', '.join(columns)}); write the scores to "
+                          "another file, or remove it")
+    try:
+        return [MeasuredScore(task=row["task"], policy=row["policy"], mean=float(row["mean"]), std=float(row["std"]),
+                              episodes=int(row["episodes"]), seed=int(row["seed"]), env_version=row["env_version"],
+                              measured_on=row["measured_on"], command=row["command"]) for row in rows]
+    except (TypeError, ValueError) as error:  # a short row gives None, a mangled number a ValueError
+        raise VintixError(f"{path}, line {rows.line_num}: not a row of a score table ({error}); fix or remove "
+                          "it") from None
 
 
 def record_scores(new: Sequence[MeasuredScore], path: Path) -> Path:
