@@ -477,6 +477,10 @@ CHECKPOINTS = {
         d / "config.json").write_text(json.dumps({**json.loads((d / "config.json").read_text()), field: value})))
        for field, kind, value in [("custom_tasks", "a-list", ["reach-v3"]), ("config", "a-list", [1, 2]),
                                   ("groups", "an-object", {"metaworld": 1}), ("task_norms", "text", "none")]},
+    # ...and each group's (issue 71's red team: a text obs_dim was "does not describe a model", no field named)
+    "group-text-obs-dim": damaged_checkpoint("group-text-obs-dim", lambda d: (d / "config.json").write_text(json.dumps(
+        {**json.loads((d / "config.json").read_text()), "groups": [
+            {**g, "obs_dim": str(g["obs_dim"])} for g in json.loads((d / "config.json").read_text())["groups"]]}))),
     # ...and the record the model card shows (issue 71, class 4): a text step was a traceback at the next save.
     "extra-step-is-text": damaged_checkpoint("extra-step-is-text", lambda d: (d / "config.json").write_text(json.dumps(
         {**json.loads((d / "config.json").read_text()),

@@ -25,6 +25,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
     bad_input_test,
     clean_data,
     cli_error,
+    damaged_data,
     damaged_release,
     documented,
     empty_dir,
@@ -34,6 +35,7 @@ from bad_inputs import (  # noqa: F401  (workspace: autouse fixture)
     not_written,
     once,
     release_snapshot,
+    rewrite_json,
     trained_run,
     work,
     workspace,
@@ -465,7 +467,20 @@ def escape_codes_from_a_name_are_printed_escaped() -> str | None:
     return None
 
 
+def a_dataset_task_name_is_printed_as_it_is() -> str | None:
+    """Issue 71's red team: `data stats` sent a task JSON's escape codes to the terminal, and rich read its
+    ``[bold]`` as markup (the name printed was not the name)."""
+    name = "\x1b[31mRED\x1b[0m[bold]B[/bold]\nline"
+    root = damaged_data("marked-up-name", rewrite_json(lambda m: m.update(task_name=name)))()
+    code, output = invoke("data", "stats", root)
+    if code != 0 or "\x1b" in output or "\\x1b[31mRED\\x1b[0m[bold]B[/bold]\\nline" not in output:
+        return f"exit {code}: {output!r}"
+    return None
+
+
 documented("values", "--threads 1024 runs on the machine's cores, with a note", threads_beyond_the_cores_are_capped)
+documented("values", "a dataset's task name holding escape codes and markup is printed as it is",
+           a_dataset_task_name_is_printed_as_it_is)
 documented("values", "an escape code in a name is printed as \\x1b, never sent to the terminal",
            escape_codes_from_a_name_are_printed_escaped)
 

@@ -228,7 +228,7 @@ def test_a_second_collection_into_a_folder_in_use_is_refused_at_once(tmp_path):
 
 def test_a_collection_the_disk_cannot_hold_is_refused_before_anything_is_written(tmp_path):
     plan = CollectionPlan("reach-v3", histories=1, steps=10**12)
-    with pytest.raises(CollectionError, match=r"need about [\d,.]+ GiB, and .* GiB free; free space"):
+    with pytest.raises(CollectionError, match=r"need about [\d,.]+ [kMGT]B, and .* [kMGT]B free; free space"):
         collect(plan, tmp_path / "data")
     assert not (tmp_path / "data").exists()
 

@@ -174,7 +174,12 @@ def test_your_own_tasks_keep_their_env_or_its_bounds(tmp_path, minari_home):
 def test_a_full_disk_is_said_before_a_minari_export_writes(pendulum_data, small_disk, monkeypatch):
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(small_disk / "minari"))
     fill_up(small_disk)
-    with pytest.raises(OSError, match=r"the Minari dataset 'vintix/pendulum-v0' would need about .* GiB free; free"):
+    with pytest.raises(OSError, match=r"the Minari dataset 'vintix/pendulum-v0' would need about .* [kMGT]B free; free"):
         export_minari(pendulum_data, "vintix/pendulum-v0")
     written = [p.name for p in small_disk.rglob("*") if p.is_file()]
     assert written == ["ballast"]  # nothing begun (Minari's own root folder aside), no h5py traceback
+    # One message, its own fix: no errno, no advice of a full disk mid-write that names an option export lacks
+    said = CliRunner().invoke(app, ["data", "export-minari", str(pendulum_data), "--dataset-id", "vintix/pendulum-v0"])
+    output = " ".join(said.output.split())
+    assert said.exit_code == 2 and "free space, or point MINARI_DATASETS_PATH elsewhere" in output, output
+    assert "[Errno" not in output and "--out" not in output, output

@@ -448,7 +448,9 @@ for damage, needle in [("truncated-weights", "truncated or damaged"), ("garbage-
                        ("task_norms-is-text", "field 'task_norms' must be list[dict[str, Any]], got \"none\""),
                        ("extra-step-is-text", "field 'extra.step' must be int, got \"many\""),
                        ("no-weights", "model.safetensors is not"), ("future-format", "checkpoint format 99"),
-                       ("groups-malformed", "does not describe a model"), ("config-text-heads", "n_heads must be int"),
+                       ("groups-malformed", "no field 'groups[0].name' (str)"),
+                       ("group-text-obs-dim", "field 'groups[0].obs_dim' must be int"),
+                       ("config-text-heads", "n_heads must be int"),
                        ("weights-of-another-model", "does not fit the model")]:
     cli_error("eval", f"checkpoint: {damage}", lambda d=damage: [*EVAL, "--checkpoint", CHECKPOINTS[d](), "--out",
                                                                  work() / "e-ckpt"], needle)

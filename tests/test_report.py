@@ -460,6 +460,8 @@ def test_options_mean_one_thing_a_label_from_a_file_is_literal_markdown_in_the_r
     row = next(line for line in report.splitlines() if "Fake heading" in line)
     header = next(line for line in report.splitlines() if line.startswith("| label |"))
     assert row.count(" | ") == header.count(" | ") and "\\| extra cell" in row  # the | stays inside its cell
+    # ...and on the console: its note named the label with a line break of its own (issue 71's red team)
+    assert "\x1b" not in result.output and not [line for line in result.output.splitlines() if "# Fake" in line[:8]]
 
 
 def test_a_results_folder_belongs_to_one_run_episodes_of_one_and_run_json_of_another_are_refused(two_results,

@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from vintix.errors import OutputPathError
+from vintix.errors import DiskSpaceError, OutputPathError
 
 if TYPE_CHECKING:
     import torch
@@ -43,16 +43,24 @@ def file_name(name: str) -> str:
     return f"{safe[:MAX_NAME_BYTES - len(digest) - 1]}-{digest}"
 
 
+def byte_size(n_bytes: float) -> str:
+    """A size as a person reads it: ``12 kB``, ``3.4 MB``, ``1.2 GB``."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n_bytes >= scale:
+            return f"{n_bytes / scale:,.1f} {unit}"
+    return f"{n_bytes / 1e3:,.0f} kB"
+
+
 def check_free_space(folder: str | os.PathLike[str], needed: int, what: str, fix: str) -> None:
-    """An OSError (ENOSPC) now, naming `folder`, the space `what` (a plural subject: "the histories", "the dataset
+    """A DiskSpaceError now, naming `folder`, the space `what` (a plural subject: "the histories", "the dataset
     would") needs and what it has, where the file system that will hold `folder` has less free than `needed` bytes:
     a full disk said before the work, not in its middle."""
     folder = Path(folder)
     existing = next(p for p in (folder, *folder.parents) if p.exists())
     free = shutil.disk_usage(existing).free
     if needed > free:
-        raise OSError(errno.ENOSPC, f"{what} need about {needed / 2**30:,.2f} GiB, and {existing} has "
-                                    f"{free / 2**30:,.2f} GiB free; {fix}", str(folder))
+        raise DiskSpaceError(errno.ENOSPC, f"{folder}: {what} need about {byte_size(needed)}, and {existing} has "
+                                           f"{byte_size(free)} free; {fix}")
 
 
 def read_regular_text(path: str | os.PathLike[str]) -> str:

@@ -22,7 +22,7 @@ from rich.table import Table
 from tqdm import tqdm
 from typer.core import TyperGroup
 
-from vintix.atomic import atomic_write_text, check_output_path
+from vintix.atomic import atomic_write_text, byte_size, check_output_path
 from vintix.errors import VintixError, json_loads, printable
 from vintix.evaluate.config import (
     ML1_ADAPTATION_SHOTS,
@@ -127,6 +127,12 @@ def _note(text: str) -> None:
     console.print(f"[yellow]note:[/yellow] {escape(printable(text))}", highlight=False)
 
 
+def _shown(text: object) -> str:
+    """Text a file supplied (a task name, a dataset's problem) as the console prints it: control characters and line
+    breaks escaped (`printable`), and no rich markup taken from it (``[bold]`` stays text)."""
+    return escape(printable(str(text), breaks=False))
+
+
 # Piped or logged output gets room for the wide tables instead of rich's default 80 columns, and its lines of
 # text are never hard-wrapped: an error naming a long path stays one line that a log or a grep sees whole.
 _ON_TERMINAL = sys.stdout.isatty()
@@ -148,7 +154,7 @@ def _fail(error: Exception, command: str | None = None) -> typer.Exit:
     """Print `error` as one line with its fix; `command`: the vintix command it ended, where its context is gone (an
     error that reached the group), else the current context's."""
     message = str(error)
-    if isinstance(error, OSError) and error.errno in _OS_ERROR_FIXES:
+    if isinstance(error, OSError) and not isinstance(error, VintixError) and error.errno in _OS_ERROR_FIXES:
         if error.filename is not None and str(error.filename) not in message:  # name the file it could not write
             message += f": {error.filename}"
         message += f"; {_OS_ERROR_FIXES[error.errno]}"
@@ -440,7 +446,7 @@ def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file
         table.add_column(column, justify="left" if column == "task" else "right")
     for e in estimates:
         table.add_row(e.task, str(e.histories), f"{e.steps_per_history:,}", f"{e.steps:,}", str(len(e.batches)),
-                      _size(e.bytes), ("" if e.measured else "≈") + f"{e.steps_per_s:,.0f}",
+                      byte_size(e.bytes), ("" if e.measured else "≈") + f"{e.steps_per_s:,.0f}",
                       f"{sum(e.batch_seconds) / 3600:.2f}")
     console.print(table)
     steps = sum(e.steps for e in estimates)
@@ -448,19 +454,12 @@ def _print_collection_plan(plans: list[CollectionPlan], workers: int, rates_file
     pilots = sum(e.histories * e.pilot_steps for e in estimates)
     steps_line = f"{steps:,} steps" + (f" (+ {pilots:,} pilot steps, not stored)" if pilots else "")
     console.print(f"total: {len(estimates)} tasks, {sum(e.histories for e in estimates):,} histories, {steps_line}, "
-                  f"{_size(sum(e.bytes for e in estimates))} on disk, {core_hours:.1f} core-hours; with --workers "
+                  f"{byte_size(sum(e.bytes for e in estimates))} on disk, {core_hours:.1f} core-hours; with --workers "
                   f"{workers}: about {wall_seconds(estimates, workers) / 3600:.1f} h wall time")
     estimated = [e.task for e in estimates if not e.measured]
     if estimated:
         console.print(f"≈: no demonstrator yet, so the rate is the raw env rate times the median collector/raw ratio: "
                       f"{', '.join(estimated)}; train them first (`vintix demonstrator train --task TASK`)")
-
-
-def _size(n_bytes: int) -> str:
-    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
-        if n_bytes >= scale:
-            return f"{n_bytes / scale:,.1f} {unit}"
-    return f"{n_bytes / 1e3:,.0f} kB"
 
 
 @demonstrator_app.command("train")
@@ -781,7 +780,7 @@ def data_validate(root: Annotated[Path, typer.Argument(help="dataset root: <root
     problems = [p for folder in tqdm(folders, desc="validating", disable=None)
                 for p in validate_task(folder, registry_dims, registry_episode_limit)]
     for problem in problems:
-        console.print(f"[red]✗[/red] {problem}", highlight=False)
+        console.print(f"[red]✗[/red] {_shown(problem)}", highlight=False)
     if problems:
         console.print(f"{len(problems)} problem(s) in {root}; the format is specified in docs/data-format.md")
         raise typer.Exit(code=1)
@@ -803,7 +802,7 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
     for column in ("domain", "task", "histories", "steps", "episodes", "mean episode length"):
         table.add_column(column, justify="left" if column in ("domain", "task") else "right")
     for s in summaries:
-        table.add_row(s.domain, s.task_name, str(s.histories), f"{s.steps:,}", f"{s.episodes:,}",
+        table.add_row(_shown(s.domain), _shown(s.task_name), str(s.histories), f"{s.steps:,}", f"{s.episodes:,}",
                       f"{s.mean_episode_length:.1f}")
     console.print(table)
     # How the histories improve, episode by episode: what a demonstrator's own check looks at first.
@@ -815,7 +814,7 @@ def data_stats(root: Annotated[Path, typer.Argument(help="dataset root: <root>/<
         returns.add_column(f"ep {index}", justify="right")
     for s in summaries:
         values = s.return_by_episode
-        returns.add_row(s.task_name, *(f"{values[i - 1]:.3g}" if i <= len(values) else "" for i in shown))
+        returns.add_row(_shown(s.task_name), *(f"{values[i - 1]:.3g}" if i <= len(values) else "" for i in shown))
     console.print(returns)
 
 
@@ -841,7 +840,8 @@ def data_plot(
     except (VintixError, ValueError) as error:
         raise _fail(error) from None
     if skipped:
-        console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: {', '.join(skipped)}")
+        console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: "
+                      f"{', '.join(map(_shown, skipped))}")
     scale = (f"'{reference}' random scores and each history's noise-free return" if own_expert
              else f"'{reference}' random/expert scores")
     console.print(f"wrote {len(written)} figures under {out} (normalized by the {scale})")
@@ -898,7 +898,8 @@ def data_smoothness(
                       f"{r.end:.2f}", "yes" if r.smooth() else "[red]no[/red]")
     console.print(table)
     if skipped:
-        console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: {', '.join(skipped)}")
+        console.print(f"skipped {len(skipped)} task(s) without a '{reference}' reference score: "
+                      f"{', '.join(map(_shown, skipped))}")
     console.print(f"{sum(r.smooth() for r in results)} of {len(results)} tasks rise smoothly")
 
 

@@ -44,6 +44,14 @@ class OutputPathError(VintixError, OSError):
     """An output path that cannot be written because a file sits where a folder has to be."""
 
 
+class DiskSpaceError(VintixError, OSError):
+    """Less free space than a command's output needs, found before it writes (`vintix.atomic.check_free_space`); its
+    message names the folder, both sizes and the fix."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
 class DeviceError(VintixError, ValueError):
     """A torch device name that is unknown, or that this machine does not have (CUDA without a GPU)."""
 
@@ -97,8 +105,10 @@ def json_loads(text: str) -> Any:
         raise json.JSONDecodeError("nested too deeply to read", text[:100], 0) from None
 
 
-def printable(text: str) -> str:
+def printable(text: str, breaks: bool = True) -> str:
     """`text` with every control character but line breaks and tabs written as an escape (``\\x1b``): what a file
     supplied (a task name, a label, a lock's note) is printed as it is, and never moves a terminal's cursor or
-    colours it."""
-    return "".join(c if c.isprintable() or c in "\n\t" else ascii(c)[1:-1] for c in text)
+    colours it. `breaks` False: line breaks and tabs escaped too, for a name, which must not start a line of its
+    own in a message or a figure."""
+    kept = "\n\t" if breaks else ""
+    return "".join(c if c.isprintable() or c in kept else ascii(c)[1:-1] for c in text)

@@ -32,7 +32,7 @@ from vintix.atomic import atomic_path, file_name
 from vintix.data.discovery import find_tasks
 from vintix.data.layout import PathLike
 from vintix.data.reader import LearningHistory
-from vintix.errors import UnknownTaskError, VintixError
+from vintix.errors import UnknownTaskError, VintixError, printable
 from vintix.tasks.scores import reference
 
 SMOOTH_CORRELATION = 0.9
@@ -68,10 +68,11 @@ def _plot(curves: dict[str, np.ndarray], title: str, path: Path) -> Path:
     bins = next(iter(curves.values())).shape[1]
     fraction = (np.arange(bins) + 0.5) / bins
     for label, task_curves in sorted(curves.items()):
-        axis.plot(fraction, iqm(task_curves), label=f"{label} ({len(task_curves)} histories)")
+        axis.plot(fraction, iqm(task_curves), label=f"{printable(label, breaks=False)} ({len(task_curves)} histories)")
     axis.axhline(1.0, color="gray", linestyle="--", linewidth=0.8)
     axis.axhline(0.0, color="gray", linestyle=":", linewidth=0.8)
-    axis.set(xlabel="fraction of the learning history", ylabel="normalized episode return (IQM)", title=title)
+    axis.set(xlabel="fraction of the learning history", ylabel="normalized episode return (IQM)",
+             title=printable(title, breaks=False))
     axis.legend(fontsize=7)
     with atomic_path(path) as temporary:
         figure.savefig(temporary, format="png", dpi=110, bbox_inches="tight")

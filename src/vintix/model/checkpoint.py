@@ -213,14 +213,16 @@ class TrainingRecord:
 
 
 def read_metadata(directory: str | os.PathLike[str]) -> dict[str, Any]:
-    """The JSON half of a checkpoint, each field of the type `CheckpointFile` gives it, and its ``extra`` checked
-    against `TrainingRecord`."""
+    """The JSON half of a checkpoint, each field of the type `CheckpointFile` gives it, each group's of `GroupSpec`'s,
+    and its ``extra`` checked against `TrainingRecord`."""
     found = checkpoint_config_path(directory)
     if found is None:
         raise CheckpointError(f"{directory}: no {CONFIG_FILE}; is this a checkpoint directory written by vintix?")
     damaged = at_file(CheckpointError)
     fix = "the checkpoint is damaged or not vintix's: re-save it, or use another"
     meta = read_json_file(found, CheckpointFile, damaged, fix)
+    for index, group in enumerate(meta.groups):  # each group's fields too: a text obs_dim was a message naming none
+        checked_fields(group, GroupSpec, found, damaged, fix, within=f"groups[{index}]")
     record = dataclasses.asdict(checked_fields(meta.extra, TrainingRecord, found, damaged, fix, within="extra"))
     meta.extra.update({key: record[key] for key in meta.extra if key in record})  # as converted; no key added
     if meta.format_version != FORMAT_VERSION:

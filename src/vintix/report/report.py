@@ -162,7 +162,9 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
         raise VintixError(f"{folder}: {EPISODES_FILE} is not the one {RUN_FILE} describes (its sha256 differs): the "
                           f"folder mixes the files of two runs, so its results would be reported under the wrong "
                           f"model or settings; {rewrite}")
-    return Results(run.get("label") or folder.name, folder, run, scores, domains, tasks, success, seeds,
+    # A label is a file's text: it never starts a line of its own in a note, a console line or a figure.
+    return Results(printable(run.get("label") or folder.name, breaks=False), folder, run, scores, domains, tasks,
+                   success, seeds,
                    reward_input), notes
 
 
@@ -226,13 +228,13 @@ def plot_curves(curves: dict[str, tuple[np.ndarray, int]], title: str, path: Pat
         shots = np.arange(1, len(curve) + 1)
         few = f"; fewer than {FEW_RUNS}: the band says little" if runs < FEW_RUNS else ""
         axis.plot(shots, curve[:, 0], marker="o" if len(shots) < 12 else None, markersize=3,
-                  label=f"{printable(label)} ({runs} runs{few})")
+                  label=f"{label} ({runs} runs{few})")
         axis.fill_between(shots, curve[:, 1], curve[:, 2], alpha=0.2)
     axis.axhline(1.0, color="gray", linestyle="--", linewidth=0.8)
     axis.axhline(0.0, color="gray", linestyle=":", linewidth=0.8)
     axis.xaxis.set_major_locator(MaxNLocator(integer=True))  # shots are whole episodes
     axis.set(xlabel="shot (episode from an empty context)", ylabel=f"normalized score ({statistic}, 95% CI)",
-             title=title)
+             title=printable(title, breaks=False))
     _legend_below(axis)
     return _save(figure, path)
 
