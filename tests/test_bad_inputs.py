@@ -549,6 +549,41 @@ cli_error("outputs", "collect into a dataset holding a FIFO named like a history
     "collect", "--task", "reach-v3", "--histories", "1", "--steps", "50", "--out", dataset_with_a_fifo()], "a FIFO")
 
 
+def fifo_in_place_of(name: str, source: Callable[[], Path], relative: str) -> Callable[[], Path]:
+    """A copy of `source()` whose file `relative` is a FIFO."""
+    @once
+    def make() -> Path:
+        folder = work() / f"fifo-{name}"
+        shutil.copytree(source(), folder)
+        (folder / relative).unlink()
+        os.mkfifo(folder / relative)
+        return folder
+    return make
+
+
+def bare_fifo(name: str) -> Path:
+    path = work() / name
+    if not path.exists():
+        os.mkfifo(path)
+    return path
+
+
+# Issue 71's red team: a FIFO where a file is read was called missing ("no recipe file", "missing task metadata"):
+# it is named for what it is.
+for what, args in [
+    ("the task JSON", lambda: ["data", "validate", fifo_in_place_of("task-json", clean_data,
+                                                                     "metaworld/reach-v3/reach-v3.json")()]),
+    ("episodes.csv", lambda: ["report", fifo_in_place_of("episodes", eval_results, "episodes.csv")(), "--out",
+                              work() / "r-fifo"]),
+    ("model.safetensors", lambda: ["eval", "--checkpoint", fifo_in_place_of("weights", model_checkpoint,
+                                                                            "model.safetensors")(),
+                                   "--tasks", "reach-v3", "--out", work() / "e-fifo"]),
+    ("the recipe", lambda: ["collect", "--recipe", bare_fifo("recipe.yaml"), "--out", work() / "c-fifo"]),
+    ("the training config", lambda: ["train", "--config", bare_fifo("config.yaml"), "--data", clean_data()]),
+]:
+    cli_error("outputs", f"a FIFO in place of {what}", args, "is not a regular file")
+
+
 # Names (issue 55, class 3): a bare name means one thing; a local path shadowing a shipped name is refused.
 def in_shadowing_folder(*argv: object) -> Callable[[], tuple[int, str]]:
     """Run `argv` from a folder holding ./vintix-cpu (a folder), ./tiny (a file) and ./darkroom (a file)."""

@@ -63,6 +63,15 @@ def check_free_space(folder: str | os.PathLike[str], needed: int, what: str, fix
                                            f"{byte_size(free)} free; {fix}")
 
 
+def not_a_file(path: str | os.PathLike[str]) -> str | None:
+    """What is wrong where `path` is there but is not a regular file (a FIFO, a device, a folder, a broken link), in
+    words that name it; None where it is a file or nothing is there (the caller's "missing" is then the truth)."""
+    path = Path(path)
+    if path.is_file() or not (path.exists() or path.is_symlink()):
+        return None
+    return f"{path} is there but is not a regular file (a FIFO, a device, a folder or a broken link); give a file"
+
+
 def read_regular_text(path: str | os.PathLike[str]) -> str:
     """The text of the file at `path`, which must be a regular file: opened without blocking, so that a FIFO, a socket
     or a device given where a file is meant is an OSError naming it instead of a read that hangs for ever."""

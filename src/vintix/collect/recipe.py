@@ -25,6 +25,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from vintix.atomic import not_a_file
 from vintix.collect.collector import CollectionError, CollectionPlan
 from vintix.collect.noise import NoiseSchedule
 from vintix.configfiles import read_layered
@@ -56,6 +57,8 @@ def recipe_path(name_or_path: str | Path) -> Path:
         return shipped
     if path.is_file():
         return path
+    if why := not_a_file(path):
+        raise CollectionError(f"--recipe {why}")
     raise FileNotFoundError(
         f"no recipe file {str(name_or_path)!r} and no shipped recipe of that name; shipped: {shipped_recipes()}")
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from vintix.atomic import atomic_write_text, file_name
+from vintix.atomic import atomic_write_text, file_name, not_a_file
 from vintix.data.layout import (
     ACTION_TYPES,
     PathLike,
@@ -69,6 +69,8 @@ def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
     dims it declares."""
     path = metadata_path(task_dir)
     fix = "fix it or rewrite it with vintix.data.write_task_metadata()"
+    if why := not_a_file(path):
+        raise DatasetError(path, why.removeprefix(f"{path} "))
     if not path.is_file():
         raise DatasetError(
             path, f"missing task metadata (keys {list(_REQUIRED_KEYS)}); write it with write_task_metadata()"

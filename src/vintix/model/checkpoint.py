@@ -27,7 +27,7 @@ from typing import Any
 import torch
 from safetensors.torch import load_file
 
-from vintix.atomic import atomic_save_tensors, atomic_write_text
+from vintix.atomic import atomic_save_tensors, atomic_write_text, not_a_file
 from vintix.errors import DeviceError, VintixError, at_file
 from vintix.fields import checked_fields, read_json_file
 from vintix.memory import build_within_memory
@@ -277,6 +277,8 @@ def load_pretrained(directory: str | os.PathLike[str], device: str | torch.devic
     except CheckpointError as error:  # build_model cannot name the file it was read from
         raise CheckpointError(f"{directory / CONFIG_FILE}: {error}") from error
     weights_path = directory / WEIGHTS_FILE
+    if why := not_a_file(weights_path):
+        raise CheckpointError(why)
     if not weights_path.is_file():
         raise CheckpointError(f"{directory}: {CONFIG_FILE} is there but {WEIGHTS_FILE} is not; re-save it")
     try:

@@ -42,6 +42,7 @@ from vintix.atomic import (
     check_output_kind,
     file_name,
     folder_lock,
+    not_a_file,
 )
 from vintix.demonstrators.goal_blind import read_goal_blind
 from vintix.errors import VintixError, at_file, printable
@@ -101,6 +102,8 @@ def load_results(folder: Path, table: str) -> tuple[Results, list[str]]:
     """Read one results folder and normalize its returns with `table`; notes name tasks it lacks."""
     check_table(table)
     episodes, run_file = folder / EPISODES_FILE, folder / RUN_FILE
+    if why := not_a_file(episodes) or not_a_file(run_file):
+        raise VintixError(why)
     if not episodes.is_file() or not run_file.is_file():
         raise VintixError(f"{folder}: no {EPISODES_FILE} and {RUN_FILE}; point to a folder written by `vintix eval`")
     rewrite = "re-run `vintix eval` into this folder"

@@ -28,7 +28,7 @@ from typing import Any
 import torch
 from safetensors.torch import load_file
 
-from vintix.atomic import PARTIAL_SUFFIX, atomic_directory, atomic_save_tensors, atomic_write_text
+from vintix.atomic import PARTIAL_SUFFIX, atomic_directory, atomic_save_tensors, atomic_write_text, not_a_file
 from vintix.errors import json_loads
 from vintix.model.checkpoint import (
     CONFIG_FILE,
@@ -182,6 +182,8 @@ def model_directory(path: str | os.PathLike[str]) -> Path:
     if is_checkpoint(best_checkpoint_dir(path)):
         return best_checkpoint_dir(path)
     latest = latest_checkpoint(path)
+    if latest is None and (why := not_a_file(path / CONFIG_FILE)):
+        raise CheckpointError(why)
     if latest is None:
         raise CheckpointError(
             f"{path}: neither a model checkpoint ({CONFIG_FILE} + {WEIGHTS_FILE}) nor a training run with "

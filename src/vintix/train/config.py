@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from vintix.atomic import not_a_file
 from vintix.configfiles import read_layered
 from vintix.errors import VintixError, local_or_shipped
 from vintix.fields import MAX_THREADS, check_field_types
@@ -262,6 +263,8 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
         shipped = shipped_config(config)
         if shipped is not None and not local_or_shipped(config, True, "training config"):
             path = shipped
+        elif why := not_a_file(path):
+            raise ConfigError(f"--config {why}")
         elif not path.is_file():
             raise ConfigError(f"--config {config!r} is neither a model preset ({', '.join(PRESETS)}), a shipped config "
                               f"({', '.join(shipped_configs())}) nor a YAML file")
