@@ -446,6 +446,9 @@ cli_error("values", "train --set of one field twice", lambda: [
 cli_error("values", "train --set init_from= (empty: it trained from scratch without a word)", lambda: [
     "train", "--data", clean_data(), "--out", work() / "set-empty", "--set", "init_from="],
     "gives init_from no value", after=not_written(lambda: work() / "set-empty"))
+cli_error("values", "train --set 'init_from=\"\"' (an empty text: it was read as the working folder)", lambda: [
+    "train", "--data", clean_data(), "--out", work() / "set-empty-text", "--set", 'init_from=""'],
+    "init_from given as an empty text", after=not_written(lambda: work() / "set-empty-text"))
 cli_error("values", "report --gap-shots with one results folder", lambda: [
     "report", eval_results(), "--gap-shots", "1-2", "--out", work() / "r-gap-one"], "give both folders",
     after=not_written(lambda: work() / "r-gap-one"))
@@ -623,6 +626,18 @@ def dot_slash_means_the_local_file() -> str | None:
 
 
 documented("names", "collect --recipe ./tiny reads the local file", dot_slash_means_the_local_file)
+
+
+def a_folder_shadows_no_file() -> str | None:
+    """Issue 71's red team: a model folder ./vintix-cpu stopped `--config vintix-cpu` with advice (./vintix-cpu)
+    that named no config."""
+    code, output = in_shadowing_folder("train", "--config", "vintix-cpu", "--data", "nowhere")()
+    return None if code == 2 and "is both the shipped" not in output and "nowhere" in output else \
+        f"exit {code}: {output[-300:]}"
+
+
+documented("names", "train --config vintix-cpu beside a model folder ./vintix-cpu: the shipped config",
+           a_folder_shadows_no_file)
 
 
 # Plug-ins (issue 47, class 6): code vintix is told to call that fails ends in one line naming it and the fix.

@@ -243,6 +243,11 @@ def test_fine_tuning_starts_from_a_models_weights_with_fresh_groups_for_tasks_it
     kept = Trainer(make_config(data, tmp_path / "kept", tasks=[], init_from=str(source), max_steps=1,
                                model_overrides={**TEST_MODEL, "keep_first_steps": 8}))  # inference-only: free
     assert kept.model.config.keep_first_steps == 8
+    # ...and so is the window: no weight is a position's (the shipped point-goal, context 1024, with its own config's
+    # 100-step window was refused: issue 71's red team)
+    shorter = Trainer(make_config(data, tmp_path / "shorter", tasks=[], init_from=str(source), max_steps=1,
+                                  window_len=start.config.context_len // 2))
+    assert shorter.model.config.context_len == start.config.context_len // 2
     tuned.run()  # a resumed run's weights are its checkpoint's, however init_from is spelled now
     resumed = Trainer(make_config(data, tmp_path / "tuned", tasks=[], init_from=str(source / "checkpoints"),
                                   max_steps=2))

@@ -78,12 +78,13 @@ class ShadowedNameError(VintixError, ValueError):
     """A bare name that means both something the package ships and a file or folder here."""
 
 
-def local_or_shipped(given: str | os.PathLike[str], shipped: bool, what: str) -> bool:
+def local_or_shipped(given: str | os.PathLike[str], shipped: bool, what: str, a_file: bool = False) -> bool:
     """Whether `given` means the local path (True) or the package's shipped `what` of that name (False), one way
     only: a bare name (no folder part) that is both is a ShadowedNameError, never silently the local one (which
-    runs would then record as the shipped one). ``./name`` means the local path, always."""
+    runs would then record as the shipped one). ``./name`` means the local path, always. `a_file`: `what` is a file
+    (a recipe, a config), so a folder of that name (a run, a model called the same) is not one and shadows nothing."""
     text = os.fspath(given)
-    exists = os.path.lexists(text)
+    exists = os.path.lexists(text) and not (a_file and os.path.isdir(text))
     if exists and shipped and os.sep not in text and "/" not in text:
         raise ShadowedNameError(f"{text!r} is both the shipped {what} of that name and {os.path.join('.', text)} here; "
                                 f"write ./{text} for yours, or rename or move it to use the shipped one")

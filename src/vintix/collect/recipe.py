@@ -53,7 +53,7 @@ def recipe_path(name_or_path: str | Path) -> Path:
     is refused (`vintix.errors.local_or_shipped`)."""
     path = Path(name_or_path)
     shipped = shipped_recipe(str(name_or_path))
-    if shipped is not None and not local_or_shipped(name_or_path, True, "recipe"):
+    if shipped is not None and not local_or_shipped(name_or_path, True, "recipe", a_file=True):
         return shipped
     if path.is_file():
         return path

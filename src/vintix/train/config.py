@@ -138,6 +138,10 @@ class TrainConfig:
         check_field_types(self, ConfigError)
         if self.model not in PRESETS:
             raise ConfigError(f"model preset {self.model!r} is unknown; choose one of {sorted(PRESETS)}")
+        # An empty path is the working folder to Path(""): never what a config that names one means.
+        empty = [name for name in ("data", "out", "init_from", "stats_cache_dir") if getattr(self, name) == ""]
+        if empty:
+            raise ConfigError(f"{', '.join(empty)} given as an empty text; give a path, or null for none")
         positive = {"batch_size": self.batch_size, "grad_accum": self.grad_accum, "max_steps": self.max_steps,
                     "episode_sparsity": self.episode_sparsity, "checkpoint_every": self.checkpoint_every,
                     "keep_checkpoints": self.keep_checkpoints, "log_every": self.log_every,
@@ -261,7 +265,7 @@ def load_config(config: str, overrides: dict[str, Any] | None = None, settings: 
     else:
         path = Path(config)
         shipped = shipped_config(config)
-        if shipped is not None and not local_or_shipped(config, True, "training config"):
+        if shipped is not None and not local_or_shipped(config, True, "training config", a_file=True):
             path = shipped
         elif why := not_a_file(path):
             raise ConfigError(f"--config {why}")

@@ -260,8 +260,9 @@ def training_threads(requested: int, world_size: int) -> int:
     return max(1, min(cores, cores - round(busy)) // world_size)
 
 
-INFERENCE_ONLY_SETTINGS = ("keep_first_steps", "sample_noise", "flow_steps")
-"""Model settings no weight depends on (training windows never slide): a fine-tune may change them"""
+INFERENCE_ONLY_SETTINGS = ("keep_first_steps", "sample_noise", "flow_steps", "context_len")
+"""Model settings no weight depends on (training windows never slide; ALiBi has no weight per position, so a window
+of another length reads the same weights): a fine-tune may change them"""
 
 
 def start_from_pretrained(model: Vintix, name_or_path: str) -> list[str]:
