@@ -123,9 +123,23 @@ def edit_metadata(field: str, value: object) -> Callable[[Path], None]:
 cli_error("outputs", "import-official of a release with a NaN weight", damaged_release("nan-weight", nan_weight),
           "hold NaN or inf")
 cli_error("outputs", "import-official of a release with a NaN obs_std",
-          damaged_release("nan-std", edit_metadata("obs_std", float("nan"))), "damaged obs_std")
+          damaged_release("nan-std", edit_metadata("obs_std", float("nan"))), ".obs_std' must be list[float]")
 cli_error("outputs", "import-official of a release with reward_scale -1e308",
           damaged_release("scale", edit_metadata("reward_scale", -1e308)), "reward_scale")
+
+
+def edit_config(field: str, value: object) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        config = json.loads((folder / "config.json").read_text())
+        (folder / "config.json").write_text(json.dumps({**config, field: value}))
+    return damage
+
+
+# Issue 71's red team: a text where the release writes a number was named by the wrong field, or by none.
+cli_error("outputs", "import-official of a release whose obs_mean is a text",
+          damaged_release("text-mean", edit_metadata("obs_mean", "0.1")), ".obs_mean' must be list[float]")
+cli_error("outputs", "import-official of a release whose transformer_depth is a text",
+          damaged_release("text-depth", edit_config("transformer_depth", "4")), "'transformer_depth' must be int")
 
 # Benchmarks (invalid ones must fail before timing anything)
 cli_error("bench", "train an unknown preset", ["bench", "train", "huge"], "huge")

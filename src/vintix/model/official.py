@@ -33,7 +33,7 @@ import torch
 
 from vintix.atomic import atomic_path, atomic_write_text, check_free_space, check_replaceable, folder_lock
 from vintix.errors import at_file
-from vintix.fields import read_json_object
+from vintix.fields import checked_fields, read_json_object
 from vintix.model.checkpoint import (
     WEIGHTS_FILE,
     CheckpointError,
@@ -86,6 +86,36 @@ MODEL_FIELDS = (*_SIZE_FIELDS, "hidden_dim", *_DROPOUT_FIELDS, *_FIXED_FIELDS)
 """The release config's fields that describe the model; the others (lr, data_dir, ...) train it."""
 
 
+@dataclass
+class ReleaseSizes:
+    """The release config's numbers, each of the type the release writes (`config_from_official` checks them)."""
+
+    observation_emb_dim: int
+    action_emb_dim: int
+    reward_emb_dim: int
+    transformer_depth: int
+    transformer_heads: int
+    intermediate_size: int
+    context_len: int
+    hidden_dim: int
+    attn_dropout: float
+    residual_dropout: float
+
+
+@dataclass
+class ReleaseTask:
+    """A task's entry of the release ``metadata.json``, the fields a model is built from (`_norm_from_entry`)."""
+
+    observation_shape: dict[str, list[int]]
+    group_name: str
+    reward_scale: float
+    obs_mean: list[float]
+    obs_std: list[float]
+
+
+_RELEASE_FIX = "is this a Vintix release? download the snapshot again"
+
+
 def official_semantics(**sizes: Any) -> ModelConfig:
     """A ModelConfig computing what the release's model computes, at the given sizes (the `paper` preset
     holds the release's sizes and semantics)."""
@@ -104,6 +134,7 @@ def config_from_official(config: Mapping[str, Any], where: str = CONFIG) -> Mode
                            f"{config['residual_dropout']} (we implement one dropout rate for both)")
     if unsupported:
         raise OfficialFormatError(f"{where}: this vintix does not implement {'; '.join(unsupported)}")
+    checked_fields(dict(config), ReleaseSizes, Path(where), at_file(OfficialFormatError), _RELEASE_FIX)
     sizes = {ours: config[theirs] for theirs, ours in _SIZE_FIELDS.items()}
     try:
         model_config = official_semantics(**sizes, dropout=float(config["attn_dropout"]))
@@ -226,6 +257,8 @@ def _our_task_name(name: str) -> str:
 
 
 def _norm_from_entry(name: str, entry: Mapping[str, Any], where: str) -> TaskNorm:
+    if isinstance(entry, Mapping):  # each field of the type the release writes, named where it is not
+        checked_fields(dict(entry), ReleaseTask, Path(where), at_file(OfficialFormatError), _RELEASE_FIX, within=name)
     try:
         dim = int(entry["observation_shape"]["proprio"][0])
         norm = TaskNorm(_our_task_name(name), str(entry["group_name"]), [float(x) for x in entry["obs_mean"]],
@@ -237,13 +270,13 @@ def _norm_from_entry(name: str, entry: Mapping[str, Any], where: str) -> TaskNor
     if len(norm.obs_mean) != dim or len(norm.obs_std) != dim:
         raise OfficialFormatError(f"{where}: task {name!r} has {len(norm.obs_mean)} obs_mean and "
                                   f"{len(norm.obs_std)} obs_std values for a {dim}-dim observation")
-    # A damaged statistic would surface later as NaN actions, blamed on a training run that never was.
-    damaged = [f"{field} {values}"[:120] for field, values in (("obs_mean", norm.obs_mean), ("obs_std", norm.obs_std))
-               if not np.isfinite(values).all()] + (["obs_std below 0"] if min(norm.obs_std, default=0) < 0 else []) + (
-        [f"reward_scale {norm.reward_scale}"] if not (np.isfinite(norm.reward_scale) and norm.reward_scale > 0) else [])
+    # A damaged statistic would surface later as NaN actions, blamed on a training run that never was (a value that
+    # is not finite, ReleaseTask's check refused already).
+    damaged = (["obs_std below 0"] if min(norm.obs_std, default=0) < 0 else []) + (
+        [f"reward_scale {norm.reward_scale}"] if norm.reward_scale <= 0 else [])
     if damaged:
-        raise OfficialFormatError(f"{where}: task {name!r} has a damaged {'; '.join(damaged)} (finite values, "
-                                  "std >= 0 and reward_scale > 0 expected); download the snapshot again")
+        raise OfficialFormatError(f"{where}: task {name!r} has a damaged {'; '.join(damaged)} (std >= 0 and "
+                                  "reward_scale > 0 expected); download the snapshot again")
     spec = find_task(norm.task)
     if spec is not None and spec.obs_dim != dim:
         # Our env's observation differs from the release's: a known older layout bridges them; otherwise
