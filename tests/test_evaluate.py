@@ -487,7 +487,8 @@ cli_error("eval", "a checkpoint whose config.json is nested 10^5 deep", lambda: 
     "--tasks", "reach-v3"], "config.json")
 
 # Provenance (issue 71, class 3): evaluate_shots' rows are one task's, so it takes one task's name.
-for given, needle in [("metaworld", "'metaworld' is 50 tasks"), ("reach-v3,push-v3", "is 2 tasks"),
+for given, needle in [("metaworld", "'metaworld' is 50 tasks"), ("reach-v3,push-v3", "not the list"),
+                      ("reach-v3,reach-v3", "not the list"), ("reach-v3,", "not the list"),
                       (["reach-v3"], "give one task's name"), ("reech-v3", "Did you mean")]:
     api_error("eval", f"evaluate_shots on {given!r}", lambda given=given: __import__("vintix.evaluate").evaluate
               .evaluate_shots(__import__("vintix").Agent.from_pretrained(model_checkpoint()), given), needle)

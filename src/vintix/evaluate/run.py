@@ -561,7 +561,9 @@ def evaluate_shots(agent: Agent, task: str, shots: int = 10, seeds: int = 5, fir
     if not isinstance(task, str):
         raise EvalConfigError(f"evaluate_shots plays one task: give one task's name, e.g. 'reach-v3', not {task!r}")
     if find_task(task) is None:
-        matches = [spec.name for spec in resolve_tasks(task.split(","))]  # a name of nothing: UnknownTaskError
+        if "," in task:
+            raise EvalConfigError(f"evaluate_shots plays one task: give one task's name, not the list {task!r}")
+        matches = [spec.name for spec in resolve_tasks([task])]  # a name of nothing: UnknownTaskError
         raise EvalConfigError(f"evaluate_shots plays one task, and {task!r} is {len(matches)} tasks "
                               f"({', '.join(matches[:4])}{', ...' if len(matches) > 4 else ''}): give one of them")
     config = EvalConfig(tasks=[task], shots=shots, seeds=seeds, first_seed=first_seed, reward_input=reward_input,
