@@ -85,15 +85,16 @@ def read_only_folder(tmp_path):
 
 
 def fill_up(disk: Path) -> Path:
-    """Write zeros into `disk` until it is full, as another program would; returns the ballast file."""
+    """Write zeros into `disk` until it is full, as another program would; returns the ballast file (which may
+    be empty, or absent: on a loaded machine the writer being tested can fill the disk first)."""
     ballast = disk / "ballast"
-    with open(ballast, "wb") as f:
-        try:
+    try:
+        with open(ballast, "wb") as f:
             while True:
                 f.write(bytes(1 << 16))
                 f.flush()
-        except OSError:
-            pass
+    except OSError:
+        pass
     return ballast
 
 
