@@ -598,7 +598,7 @@ for what, args in [
     ("the recipe", lambda: ["collect", "--recipe", bare_fifo("recipe.yaml"), "--out", work() / "c-fifo"]),
     ("the training config", lambda: ["train", "--config", bare_fifo("config.yaml"), "--data", clean_data()]),
 ]:
-    cli_error("outputs", f"a FIFO in place of {what}", args, "is not a regular file")
+    cli_error("outputs", f"a FIFO in place of {what}", args, ": not a regular file")
 
 
 # Names (issue 55, class 3): a bare name means one thing; a local path shadowing a shipped name is refused.

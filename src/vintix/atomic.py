@@ -69,7 +69,7 @@ def not_a_file(path: str | os.PathLike[str]) -> str | None:
     path = Path(path)
     if path.is_file() or not (path.exists() or path.is_symlink()):
         return None
-    return f"{path} is there but is not a regular file (a FIFO, a device, a folder or a broken link); give a file"
+    return f"{path}: not a regular file (a FIFO, a device, a folder or a broken link); give a file"
 
 
 def read_regular_text(path: str | os.PathLike[str]) -> str:

@@ -70,7 +70,7 @@ def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
     path = metadata_path(task_dir)
     fix = "fix it or rewrite it with vintix.data.write_task_metadata()"
     if why := not_a_file(path):
-        raise DatasetError(path, why.removeprefix(f"{path} "))
+        raise DatasetError(path, why.removeprefix(f"{path}: "))
     if not path.is_file():
         raise DatasetError(
             path, f"missing task metadata (keys {list(_REQUIRED_KEYS)}); write it with write_task_metadata()"
