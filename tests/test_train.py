@@ -148,7 +148,9 @@ def test_loss_falls_on_real_histories(metaworld_data, tmp_path):
 def test_interrupted_and_resumed_run_equals_the_straight_run(metaworld_data, tmp_path):
     straight, resumed = tmp_path / "straight", tmp_path / "resumed"
     def config(out):
-        return make_config(metaworld_data, out, max_steps=6, checkpoint_every=3, grad_accum=2)
+        # One thread for both: the default picks the cores the machine's load leaves free, and float sums over
+        # another thread count differ in their last bits (a loaded CI machine gave the two runs different counts).
+        return make_config(metaworld_data, out, max_steps=6, checkpoint_every=3, grad_accum=2, threads=1)
 
     Trainer(config(straight)).run()
     Trainer(config(resumed)).run(until_step=3)
