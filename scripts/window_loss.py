@@ -35,19 +35,6 @@ BATCH = 16
 """Windows per forward pass."""
 
 
-class PositionLoss(WindowLoss):
-    """`WindowLoss` left per position: ``[windows, positions]``."""
-
-    def forward(self, batch: Any) -> torch.Tensor:
-        groups = list(batch)
-        tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"],
-                                   b.get("prev_return")) for g, b in batch.items()]
-        hidden = self.model.backbone(torch.cat(tokens))
-        losses = [self.model.action_head(group).loss(part, batch[group]["action"])
-                  for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True)]
-        return torch.cat([loss.reshape(*loss.shape[:2], -1).mean(dim=2) for loss in losses])
-
-
 def task_losses(model: Vintix, extra: dict[str, Any], root: str, windows: int, seed: int,
                 by_position: bool = False) -> dict[str, np.ndarray]:
     """Per-window loss of `model`, whose checkpoint records `extra` (its tasks and training config), on
@@ -57,7 +44,8 @@ def task_losses(model: Vintix, extra: dict[str, Any], root: str, windows: int, s
                               expert_tail_fraction=config["expert_tail_fraction"], expert_rows=config["expert_rows"])
     dataset = WindowDataset(data, config["window_len"] or model.config.context_len, seed=seed,
                             episode_returns=model.config.episode_return)
-    loss = PositionLoss(model) if by_position else WindowLoss(model)
+    module = WindowLoss(model)
+    loss = module.per_position if by_position else module
     losses: dict[str, list[Any]] = {}
     with torch.no_grad():
         for start in range(0, windows * len(data.tasks), BATCH):

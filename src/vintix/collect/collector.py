@@ -43,7 +43,7 @@ from vintix.data import LearningHistory, LearningHistoryWriter, task_directory, 
 from vintix.data.layout import HISTORY_END, TERMINATED, TRUNCATED, history_bytes
 from vintix.data.writer import UNFINISHED_FILES
 from vintix.demonstrators import BEHAVIOURS, Demonstrator, GoalInferringDemonstrator, load_demonstrator
-from vintix.errors import VintixError, call_plugin
+from vintix.errors import DiskSpaceError, VintixError, call_plugin
 from vintix.fields import check_field_types
 from vintix.interrupt import sigterm_as_ctrl_c
 from vintix.memory import ensure_fits
@@ -509,8 +509,8 @@ def check_disk_space(plans: Sequence[CollectionPlan], root: Path) -> None:
     try:
         check_free_space(root, missing, "the histories still to collect", "free space, collect fewer or shorter "
                          "histories, or write elsewhere (--out)")
-    except OSError as error:
-        raise CollectionError(error.strerror) from None
+    except DiskSpaceError as error:
+        raise CollectionError(str(error)) from None
 
 
 def _collect(plans: list[CollectionPlan], root: Path, workers: int, demonstrator: Demonstrator | None,

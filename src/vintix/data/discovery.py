@@ -65,8 +65,8 @@ def write_task_metadata(task_dir: PathLike, task_name: str, obs_dim: int, act_di
 
 
 def read_task_metadata(task_dir: PathLike) -> dict[str, Any]:
-    """Load and check the task JSON (`TaskFile`, through `vintix.fields.read_json_file`); see `metadata_dims` for the
-    dims it declares."""
+    """Load and check the task JSON (`TaskFile`, through `vintix.fields.checked_fields`; the other keys are kept); see
+    `metadata_dims` for the dims it declares."""
     path = metadata_path(task_dir)
     fix = "fix it or rewrite it with vintix.data.write_task_metadata()"
     if why := not_a_file(path):

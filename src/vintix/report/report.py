@@ -488,7 +488,8 @@ def write_report(folders: list[Path], out: Path, table: str = "paper", plateau_s
         raise VintixError(f"plateau_shots must be >= 1, got {plateau_shots}")
     if gap_shots is not None and not 1 <= gap_shots[0] <= gap_shots[1]:  # the runs' own length is checked later
         raise VintixError(f"--gap-shots {gap_shots[0]}-{gap_shots[1]}: shots count from 1, first <= last")
-    twice = sorted({str(f) for f in folders if sum(Path(g).resolve() == Path(f).resolve() for g in folders) > 1})
+    resolved = [Path(f).resolve() for f in folders]
+    twice = sorted({str(f) for f, r in zip(folders, resolved, strict=True) if resolved.count(r) > 1})
     if twice:  # counted twice, a run's rows would be two runs in every table and mean
         raise VintixError(f"{', '.join(twice)}: given more than once; give each results folder once")
     if gap_shots is not None and len(folders) < 2:

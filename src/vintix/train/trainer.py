@@ -102,11 +102,16 @@ class WindowLoss(nn.Module):
         self.model = model
 
     def forward(self, batch: Batch) -> torch.Tensor:
+        return self.per_position(batch).mean(dim=1)
+
+    def per_position(self, batch: Batch) -> torch.Tensor:
+        """Each window's loss at each of its positions, ``[windows, positions]`` (`scripts/window_loss.py` shows it
+        along the window)."""
         groups = list(batch)
         tokens = [self.model.embed(g, b["task_idx"], b["obs"], b["prev_action"], b["prev_reward"], b["step_num"],
                                    b.get("prev_return")) for g, b in batch.items()]
         hidden = self.model.backbone(torch.cat(tokens))
-        return torch.cat([self.model.action_head(group).loss(part, batch[group]["action"]).mean(dim=1)
+        return torch.cat([self.model.action_head(group).loss(part, batch[group]["action"])
                           for group, part in zip(groups, hidden.split([t.shape[0] for t in tokens]), strict=True)])
 
 
